@@ -63,3 +63,12 @@ class Transform:
 
     def __repr__(self) -> str:
         return f"Transform(rot={self.rot.tolist()}, pos={self.pos.tolist()})"
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3) of a unit quaternion (4,) in MuJoCo's (w, x, y, z) order."""
+    import mujoco
+
+    r = np.zeros(9)
+    mujoco.mju_quat2Mat(r, np.asarray(q, dtype=float) / np.linalg.norm(q))
+    return r.reshape(3, 3)

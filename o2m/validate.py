@@ -449,6 +449,7 @@ def compare_kinematics(
     seed: int = 0,
     progress: bool = False,
     assembly_accuracy: float | None = 1e-12,
+    dependents: str = "mujoco",
 ) -> KinematicsReport:
     """Compare body frames, whole-model COM and mass of an OpenSim model and its MuJoCo twin.
 
@@ -464,6 +465,11 @@ def compare_kinematics(
     file's value): OpenSim's default (1e-9) leaves dependent coordinates that far from their
     constraint, which would otherwise count as conversion error. Random poses OpenSim fails
     to assemble are skipped and counted in ``skipped_poses``.
+
+    ``dependents="opensim"`` instead writes every MuJoCo joint from OpenSim's own values
+    (coordinates by name, CustomJoint transform axes by ``<joint>_<axis>``, e.g.
+    ``knee_r_translation1``) and resolves no equality: it measures the converted structure
+    alone, separating it from the error of the equalities' polynomial fits.
 
     Raises :class:`o2m.errors.ModelFileError` if OpenSim cannot load ``osim_path``,
     :class:`ValidationError` if MuJoCo cannot load ``mjcf_path`` (meshes included) and
@@ -519,7 +525,10 @@ def compare_kinematics(
     rng = np.random.default_rng(seed)
     bounds = np.array([_sample_bounds(c) for c in indep], dtype=float).reshape(-1, 2)
     samples = rng.uniform(bounds[:, 0], bounds[:, 1], size=(max(n_poses - 1, 0), len(indep)))
-    plan = joint_equality_plan(mj_model)
+    if dependents not in ("mujoco", "opensim"):
+        raise ValueError(f"dependents must be 'mujoco' or 'opensim', not {dependents!r}")
+    plan = joint_equality_plan(mj_model) if dependents == "mujoco" else []
+    axis_values = _transform_axes_by_mujoco_name(os_model, mj_model) if dependents == "opensim" else {}
 
     nb = len(common)
     sq_sum = np.zeros(nb)
@@ -546,7 +555,12 @@ def compare_kinematics(
         os_model.realizePosition(state)
         values = {name: float(c.getValue(state)) for name, c in zip(all_names, coords, strict=True)}
 
-        pose_mujoco(mj_model, mj_data, {n: values[n] for n in indep_names}, plan=plan)
+        if dependents == "mujoco":
+            pose_mujoco(mj_model, mj_data, {n: values[n] for n in indep_names}, plan=plan)
+        else:
+            given = {n: v for n, v in values.items() if _has_scalar_joint(mj_model, n)}
+            given.update({n: float(ax.getValue(state)) for n, ax in axis_values.items()})
+            pose_mujoco(mj_model, mj_data, given, plan=plan)
 
         pos_os = np.empty((nb, 3))
         rot_os = np.empty((nb, 3, 3))
@@ -597,3 +611,30 @@ def compare_kinematics(
         worst_pose=worst,
         skipped_poses=skipped,
     )
+
+
+def _has_scalar_joint(model: mujoco.MjModel, name: str) -> bool:
+    try:
+        joint_qpos_address(model, name)
+    except KeyError:
+        return False
+    return True
+
+
+def _transform_axes_by_mujoco_name(os_model: Any, mj_model: mujoco.MjModel) -> dict[str, Any]:
+    """OpenSim TransformAxis objects keyed by the MuJoCo joint named ``<joint>_<axis>``."""
+    import opensim
+
+    out: dict[str, Any] = {}
+    joint_set = os_model.getJointSet()
+    for i in range(joint_set.getSize()):
+        cj = opensim.CustomJoint.safeDownCast(joint_set.get(i))
+        if cj is None:
+            continue
+        st = cj.getSpatialTransform()
+        for k in range(6):
+            ax = st.getTransformAxis(k)
+            name = f"{cj.getName()}_{ax.getName()}"
+            if _has_scalar_joint(mj_model, name):
+                out[name] = ax
+    return out

@@ -1,0 +1,172 @@
+"""Converting an .osim file into a MuJoCo model folder, with a conversion report.
+
+``convert("arm26.osim", "out/")`` writes ``out/arm26.xml``, its meshes in ``out/meshes/``, and
+``out/arm26.report.json`` plus ``out/arm26.report.txt``. Output is assembled in a temporary
+folder and moved into place only after MuJoCo has compiled it, so a failed conversion leaves
+no half-written model behind.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import mujoco
+from lxml import etree
+
+from .document import load_document
+from .errors import O2MError
+from .mjcf import Approximation, JointRecord, MjcfBuilder, add_geometry
+from .skeleton import Skipped, read_skeleton
+
+MESH_FOLDER = "meshes"
+
+
+@dataclass
+class ConversionReport:
+    """What a conversion did: every element converted, approximated (with its error) or skipped."""
+
+    model: str
+    source: str
+    source_version: int
+    xml: str
+    seconds: float
+    counts: dict[str, int]
+    joints: list[JointRecord] = field(default_factory=list)
+    approximations: list[Approximation] = field(default_factory=list)
+    skipped: list[Skipped] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def summary(self) -> str:
+        """A readable account of the conversion (what the .report.txt file holds)."""
+        lines = [f"o2m conversion report: {self.model}",
+                 f"  source   {self.source} (OpenSim document version {self.source_version})",
+                 f"  output   {self.xml}",
+                 f"  time     {self.seconds:.2f} s",
+                 "  converted: " + ", ".join(f"{v} {k}" for k, v in self.counts.items())]
+        lines.append("")
+        lines.append("MuJoCo joints:")
+        for j in self.joints:
+            via = f" <- {j.driven_by}" if j.driven_by else ""
+            lines.append(f"  {j.name:32s} {j.kind:5s} {j.opensim_joint}/{j.axis:12s} {j.relation}{via}")
+        lines.extend(f"  note: {n}" for n in self.notes)
+        lines.append("")
+        lines.append(f"Approximations ({len(self.approximations)}):")
+        for a in self.approximations:
+            lines.append(f"  <{a.element} {a.name}> {a.what}: worst error {a.max_error:.3g} {a.units}"
+                         + (f" ({a.detail})" if a.detail else ""))
+        if not self.approximations:
+            lines.append("  none: the MuJoCo kinematics are exact")
+        lines.append("")
+        lines.append(f"Skipped ({len(self.skipped)}):")
+        by_reason: dict[str, list[str]] = {}
+        for s in self.skipped:
+            by_reason.setdefault(s.reason, []).append(f"{s.element} {s.name}".strip())
+        for reason, items in by_reason.items():
+            shown = ", ".join(items[:8]) + (f", ... ({len(items)} in all)" if len(items) > 8 else "")
+            lines.append(f"  {reason}: {shown}")
+        if self.warnings:
+            lines.append("")
+            lines.append("Warnings:")
+            lines.extend(f"  {w}" for w in self.warnings)
+        return "\n".join(lines) + "\n"
+
+    def write(self, folder: Path, stem: str) -> None:
+        (folder / f"{stem}.report.json").write_text(json.dumps(self.to_dict(), indent=1, default=float))
+        (folder / f"{stem}.report.txt").write_text(self.summary())
+
+
+@dataclass
+class Conversion:
+    """Result of :func:`convert`: the written MJCF path and the report."""
+
+    xml: Path
+    report: ConversionReport
+
+
+def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | Path] | None = None,
+            name: str | None = None) -> Conversion:
+    """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
+
+    ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
+    its ``Geometry/`` subfolder, as OpenSim searches. Raises an :class:`~o2m.errors.O2MError`
+    subclass for bad input; nothing is written then.
+    """
+    t0 = time.perf_counter()
+    osim = Path(osim)
+    out_dir = Path(out_dir)
+    stem = name or osim.stem
+    doc = load_document(osim)
+    skel = read_skeleton(doc)
+    builder = MjcfBuilder(skel)
+    result = builder.build()
+    search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs or []]
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=".o2m-", dir=out_dir.parent) as tmp:
+        stage = Path(tmp)
+        geom_skipped = add_geometry(result, skel, builder.bodies, stage / MESH_FOLDER, search)
+        spec = result.spec
+        spec.meshdir = str(stage)
+        try:
+            model = spec.compile()
+        except Exception as exc:
+            raise O2MError(f"{osim}: MuJoCo could not compile the converted model: {exc}") from exc
+        spec.add_key(name="default-pose", qpos=model.qpos0.copy())
+        spec.compile()
+        xml_path = stage / f"{stem}.xml"
+        xml_text = builder.restore_precision(_relative_meshdir(spec.to_xml()))
+        xml_path.write_text(_default_pose(xml_text, model.qpos0))
+        try:  # the written file, as a user will load it
+            mujoco.MjModel.from_xml_path(str(xml_path))
+        except Exception as exc:
+            raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
+        warnings = [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
+        report = ConversionReport(
+            model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
+            seconds=time.perf_counter() - t0,
+            counts={"bodies": len(skel.bodies), "joints": len(skel.joints), "coordinates": len(skel.coordinates),
+                    "couplers": len(skel.couplers), "markers": len(skel.markers),
+                    "mujoco joints": model.njnt, "mujoco equalities": model.neq, "meshes": model.nmesh,
+                    "geoms": model.ngeom},
+            joints=result.joints, approximations=result.approximations,
+            skipped=skel.skipped + geom_skipped, notes=result.notes, warnings=warnings)
+        report.write(stage, stem)
+        _publish(stage, out_dir, stem)
+    return Conversion(out_dir / f"{stem}.xml", report)
+
+
+def _relative_meshdir(xml: str) -> str:
+    """MJCF text with ``compiler/@meshdir`` made relative to the file (meshes sit beside it)."""
+    root = etree.fromstring(xml.encode())
+    for comp in root.iter("compiler"):
+        if comp.get("meshdir") is not None:
+            comp.set("meshdir", ".")
+    return etree.tostring(root, encoding="unicode", pretty_print=True)
+
+
+def _default_pose(xml: str, qpos0) -> str:
+    """MJCF text whose ``default-pose`` keyframe holds ``qpos0`` in full precision."""
+    root = etree.fromstring(xml.encode())
+    for key in root.iter("key"):
+        if key.get("name") == "default-pose":
+            key.set("qpos", " ".join(f"{float(v):.17g}" for v in qpos0))
+    return etree.tostring(root, encoding="unicode", pretty_print=True)
+
+
+def _publish(stage: Path, out_dir: Path, stem: str) -> None:
+    """Move the staged files into ``out_dir``; the MJCF goes last so it appears only when complete."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if (stage / MESH_FOLDER).exists():
+        (out_dir / MESH_FOLDER).mkdir(exist_ok=True)
+        for f in (stage / MESH_FOLDER).iterdir():
+            shutil.move(str(f), out_dir / MESH_FOLDER / f.name)
+    for suffix in (".report.json", ".report.txt", ".xml"):
+        shutil.move(str(stage / f"{stem}{suffix}"), out_dir / f"{stem}{suffix}")

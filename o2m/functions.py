@@ -1,0 +1,1222 @@
+"""OpenSim 1-D functions (TransformAxis / CoordinateCouplerConstraint functions) evaluated in numpy.
+
+Every class here reproduces what OpenSim 4.6 computes for the same XML element, inside and
+outside the knot range, without OpenSim.  Behaviours copied from OpenSim (checked against the
+opensim 4.6 Python API in ``tests/test_functions.py``):
+
+* ``SimmSpline``: SIMM's cubic spline with Forsythe-Malcolm-Moler end conditions (third
+  derivative at each end taken from the cubic through the 4 end points; for 3 points the
+  third derivative is continuous at the middle point; 2 points give a line).  Outside
+  [x[0], x[-1]] it extrapolates LINEARLY with the end slope.  ``NaturalCubicSpline`` and
+  ``natCubicSpline`` elements are read by OpenSim 4.6 as ``SimmSpline`` (``Object::renameType``),
+  so they are evaluated the same way (not with natural end conditions).
+* ``GCVSpline``: Woltring's GCVSPL as used by Simbody's ``SplineFitter::fitFromErrorVariance``
+  (``error_variance`` >= 0) or ``fitFromGCV`` (< 0).  With ``error_variance`` 0 the spline
+  interpolates the data only up to the tiny smoothing parameter GCVSPL's search ends on, so
+  it is a faithful port of GCVSPL (scipy's exact interpolant differs by up to ~1e-10).  The
+  natural spline of degree 2m-1 extrapolates as a polynomial of degree m-1 (constant for
+  degree 1, linear for cubic, quadratic for quintic, cubic for heptic).
+* ``PiecewiseLinearFunction``: linear extrapolation with the first/last segment slope;
+  ``PiecewiseConstantFunction``: y[0] left of the knots, y[-1] right of them, derivative 0.
+* ``PolynomialFunction``: coefficients from the HIGHEST power to the lowest.
+* ``LinearFunction``: ``<coefficients>slope intercept</coefficients>``.
+* ``MultiplierFunction``: ``scale * function(x)``, the wrapped element inside ``<function>``.
+
+Units: x is the independent coordinate value (rad or m), values are in the dependent
+coordinate's unit (rad or m); derivatives are value units per x unit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from o2m.errors import UnsupportedElementError
+
+__all__ = [
+    "Function", "Constant", "LinearFunction", "PolynomialFunction", "SimmSpline", "GCVSpline",
+    "PiecewiseLinearFunction", "PiecewiseConstantFunction", "MultiplierFunction", "Sine",
+    "StepFunction", "PolynomialFit", "parse_function", "function_child", "fit_polynomial",
+    "FUNCTION_TAGS",
+]
+
+FloatArray = NDArray[np.float64]
+
+# SimmMacros.h
+_TINY_NUMBER = 1e-7
+_ROUNDOFF_ERROR = 2e-13
+
+
+def _as_array(x: ArrayLike) -> FloatArray:
+    return np.asarray(x, dtype=np.float64)
+
+
+def _out(v: FloatArray) -> FloatArray:
+    """Return a float64 array (0-d for scalar input)."""
+    return np.asarray(v, dtype=np.float64)
+
+
+# ---------------------------------------------------------------------------------------------
+# Base class
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Function:
+    """A function of one variable as OpenSim evaluates it.
+
+    ``kind`` is the OpenSim type name (class attribute); ``name`` the element's name
+    attribute; ``tag`` the XML tag it was read from (``NaturalCubicSpline`` for a
+    SimmSpline read from such an element), ``line`` its source line.
+    """
+
+    kind: ClassVar[str] = "Function"
+    name: str | None = field(default=None, kw_only=True)
+    tag: str | None = field(default=None, kw_only=True)
+    line: int | None = field(default=None, kw_only=True)
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        """Value at x (float or array of any shape); float64 array of x's shape."""
+        raise NotImplementedError
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        """First derivative d f / d x at x (float or array of any shape); array of x's shape."""
+        raise NotImplementedError
+
+    @property
+    def knots(self) -> FloatArray:
+        """Abscissae where the function's pieces join, shape (k,); empty when smooth."""
+        return np.empty(0)
+
+    def _linearity_grid(self, lo: float, hi: float) -> FloatArray:
+        """Sample points on [lo, hi] dense enough to expose any non-linearity of a piece."""
+        pts = [np.linspace(lo, hi, 201)]
+        k = self.knots
+        if k.size:
+            edges = np.unique(np.clip(np.concatenate([[lo, hi], k]), lo, hi))
+            for a, b in zip(edges[:-1], edges[1:], strict=True):
+                pts.append(np.linspace(a, b, 11))
+        return np.unique(np.concatenate(pts))
+
+    def is_linear(self, lo: float, hi: float, tol: float = 1e-12) -> tuple[float, float] | None:
+        """(slope, intercept) if f(x) = slope * x + intercept on [lo, hi] within tol, else None.
+
+        The intercept is the value at x = 0.  tol is relative to max(1, max |f|) on [lo, hi].
+        """
+        lo, hi = float(min(lo, hi)), float(max(lo, hi))
+        if hi == lo:
+            slope = float(self.derivative(lo))
+            return slope, float(self(lo)) - slope * lo
+        xs = self._linearity_grid(lo, hi)
+        f = self(xs)
+        if not np.all(np.isfinite(f)):
+            return None
+        slope = (float(f[-1]) - float(f[0])) / (hi - lo)
+        intercept = float(f[0]) - slope * lo
+        scale = max(1.0, float(np.max(np.abs(f))))
+        if np.max(np.abs(f - (slope * xs + intercept))) > tol * scale:
+            return None
+        return slope, intercept
+
+
+# ---------------------------------------------------------------------------------------------
+# Simple closed-form functions
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Constant(Function):
+    """f(x) = value."""
+
+    kind: ClassVar[str] = "Constant"
+    value: float = 0.0
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        return _out(np.full(np.shape(x), self.value, dtype=np.float64))
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return _out(np.zeros(np.shape(x)))
+
+    def is_linear(self, lo: float, hi: float, tol: float = 1e-12) -> tuple[float, float] | None:
+        return 0.0, float(self.value)
+
+
+@dataclass(frozen=True, eq=False)
+class LinearFunction(Function):
+    """f(x) = slope * x + intercept (OpenSim ``<coefficients>slope intercept</coefficients>``)."""
+
+    kind: ClassVar[str] = "LinearFunction"
+    slope: float = 1.0
+    intercept: float = 0.0
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        return _out(self.slope * _as_array(x) + self.intercept)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return _out(np.full(np.shape(x), self.slope, dtype=np.float64))
+
+    def is_linear(self, lo: float, hi: float, tol: float = 1e-12) -> tuple[float, float] | None:
+        return float(self.slope), float(self.intercept)
+
+
+@dataclass(frozen=True, eq=False)
+class PolynomialFunction(Function):
+    """f(x) = sum_i coefficients[i] * x**(n-1-i): coefficients (n,) from the HIGHEST power down."""
+
+    kind: ClassVar[str] = "PolynomialFunction"
+    coefficients: FloatArray = field(default_factory=lambda: np.ones(1))
+
+    def __post_init__(self) -> None:
+        c = np.atleast_1d(_as_array(self.coefficients)).copy()
+        if c.ndim != 1 or c.size == 0:
+            raise ValueError("PolynomialFunction needs at least one coefficient")
+        if not np.all(np.isfinite(c)):
+            raise ValueError("PolynomialFunction coefficients must be finite")
+        object.__setattr__(self, "coefficients", c)
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        xa = _as_array(x)
+        v = np.zeros_like(xa)
+        for c in self.coefficients:  # Horner, as SimTK::Function::Polynomial
+            v = v * xa + c
+        return _out(v)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        xa = _as_array(x)
+        n = self.coefficients.size
+        v = np.zeros_like(xa)
+        for i, c in enumerate(self.coefficients[:-1]):
+            v = v * xa + c * (n - 1 - i)
+        return _out(v)
+
+
+@dataclass(frozen=True, eq=False)
+class Sine(Function):
+    """f(x) = amplitude * sin(omega * x + phase) + offset."""
+
+    kind: ClassVar[str] = "Sine"
+    amplitude: float = 1.0
+    omega: float = 1.0
+    phase: float = 0.0
+    offset: float = 0.0
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        return _out(self.amplitude * np.sin(self.omega * _as_array(x) + self.phase) + self.offset)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return _out(self.amplitude * self.omega * np.cos(self.omega * _as_array(x) + self.phase))
+
+
+@dataclass(frozen=True, eq=False)
+class StepFunction(Function):
+    """SimTK smooth step: start_value for x <= start_time, end_value for x >= end_time,
+    y0 + (y1 - y0) * u^3 (10 - 15 u + 6 u^2) with u = (x - start_time) / (end_time - start_time)."""
+
+    kind: ClassVar[str] = "StepFunction"
+    start_time: float = 0.99
+    end_time: float = 1.01
+    start_value: float = 0.0
+    end_value: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not self.end_time > self.start_time:
+            raise ValueError("StepFunction needs transition_end_time > transition_start_time")
+
+    def _u(self, x: ArrayLike) -> FloatArray:
+        return np.clip((_as_array(x) - self.start_time) * (1.0 / (self.end_time - self.start_time)),
+                       0.0, 1.0)
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        u = self._u(x)
+        smooth = u * u * u * (10 + u * (6 * u - 15))
+        return _out(self.start_value + (self.end_value - self.start_value) * smooth)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        u = self._u(x)
+        du = 30 * u * u * (1 - u) * (1 - u)
+        return _out((self.end_value - self.start_value) * (1.0 / (self.end_time - self.start_time)) * du)
+
+    @property
+    def knots(self) -> FloatArray:
+        return np.array([self.start_time, self.end_time])
+
+
+@dataclass(frozen=True, eq=False)
+class MultiplierFunction(Function):
+    """f(x) = scale * function(x)."""
+
+    kind: ClassVar[str] = "MultiplierFunction"
+    function: Function = field(default_factory=Constant)
+    scale: float = 1.0
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        return _out(self.function(x) * self.scale)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return _out(self.function.derivative(x) * self.scale)
+
+    @property
+    def knots(self) -> FloatArray:
+        return self.function.knots
+
+
+# ---------------------------------------------------------------------------------------------
+# Tabulated functions
+# ---------------------------------------------------------------------------------------------
+def _check_xy(kind: str, x: ArrayLike, y: ArrayLike, min_points: int) -> tuple[FloatArray, FloatArray]:
+    xa = np.atleast_1d(_as_array(x)).copy()
+    ya = np.atleast_1d(_as_array(y)).copy()
+    if xa.ndim != 1 or ya.ndim != 1:
+        raise ValueError(f"{kind} x and y must be 1-D")
+    if xa.size != ya.size:
+        raise ValueError(f"{kind} has {xa.size} x values but {ya.size} y values")
+    if xa.size < min_points:
+        raise ValueError(f"{kind} needs at least {min_points} points, got {xa.size}")
+    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya))):
+        raise ValueError(f"{kind} x and y must be finite")
+    if xa.size > 1 and not np.all(np.diff(xa) > 0):
+        i = int(np.argmax(~(np.diff(xa) > 0)))
+        raise ValueError(f"{kind} x must be strictly increasing "
+                         f"(x[{i}]={xa[i]!r} >= x[{i + 1}]={xa[i + 1]!r})")
+    return xa, ya
+
+
+def _opensim_interval(xk: FloatArray, t: FloatArray) -> NDArray[np.intp]:
+    """Interval index k (x[k] <= t <= x[k+1]) chosen by OpenSim's binary search (its choice at
+    a knot depends on the search path, which matters for piecewise functions).  t: (p,) inside
+    [x[0], x[-1]]."""
+    n = xk.size
+    i = np.zeros(t.shape, dtype=np.intp)
+    j = np.full(t.shape, n, dtype=np.intp)
+    k = np.zeros(t.shape, dtype=np.intp)
+    todo = np.ones(t.shape, dtype=bool)
+    for _ in range(4 * n.bit_length() + 8):
+        if not todo.any():
+            break
+        kk = (i + j) // 2
+        lt = t < xk[np.minimum(kk, n - 1)]
+        gt = ~lt & (t > xk[np.minimum(kk + 1, n - 1)])
+        j = np.where(todo & lt, kk, j)
+        i = np.where(todo & gt, kk, i)
+        done = todo & ~lt & ~gt
+        k = np.where(done, kk, k)
+        todo &= ~done
+    return np.minimum(k, max(n - 2, 0))
+
+
+@dataclass(frozen=True, eq=False)
+class SimmSpline(Function):
+    """SIMM cubic spline through (x, y), x strictly increasing (n,), n >= 2; linear outside."""
+
+    kind: ClassVar[str] = "SimmSpline"
+    x: FloatArray = field(default_factory=lambda: np.zeros(0))
+    y: FloatArray = field(default_factory=lambda: np.zeros(0))
+    b: FloatArray = field(init=False, repr=False)
+    c: FloatArray = field(init=False, repr=False)
+    d: FloatArray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        x, y = _check_xy("SimmSpline", self.x, self.y, 2)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "y", y)
+        b, c, d = _simm_coefficients(x.tolist(), y.tolist())
+        object.__setattr__(self, "b", np.array(b))
+        object.__setattr__(self, "c", np.array(c))
+        object.__setattr__(self, "d", np.array(d))
+
+    @property
+    def knots(self) -> FloatArray:
+        return self.x
+
+    def _eval(self, x: ArrayLike, deriv: bool) -> FloatArray:
+        t = _as_array(x)
+        shape = t.shape
+        t = t.ravel()
+        xk, yk, b, c, d = self.x, self.y, self.b, self.c, self.d
+        n = xk.size
+        out = np.full(t.shape, np.nan)
+        left = t < xk[0]
+        right = ~left & (t > xk[-1])
+        at0 = ~left & ~right & (np.abs(t - xk[0]) <= _ROUNDOFF_ERROR)
+        at1 = ~left & ~right & ~at0 & (np.abs(t - xk[-1]) <= _ROUNDOFF_ERROR)
+        inner = ~left & ~right & ~at0 & ~at1 & ~np.isnan(t)
+        if deriv:
+            out[left | at0] = b[0]
+            out[right | at1] = b[n - 1]
+        else:
+            out[left] = yk[0] + (t[left] - xk[0]) * b[0]
+            out[right] = yk[n - 1] + (t[right] - xk[n - 1]) * b[n - 1]
+            out[at0] = yk[0]
+            out[at1] = yk[n - 1]
+        if inner.any():
+            ti = t[inner]
+            k = np.zeros(ti.shape, dtype=np.intp) if n < 3 else _opensim_interval(xk, ti)
+            dx = ti - xk[k]
+            if deriv:
+                out[inner] = b[k] + dx * (2.0 * c[k] + 3.0 * dx * d[k])
+            else:
+                out[inner] = yk[k] + dx * (b[k] + dx * (c[k] + dx * d[k]))
+        return out.reshape(shape)
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        return self._eval(x, False)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return self._eval(x, True)
+
+
+def _simm_coefficients(x: Sequence[float],
+                       y: Sequence[float]) -> tuple[list[float], list[float], list[float]]:
+    """SimmSpline::calcCoefficients (OpenSim 4.6), operation for operation.
+
+    Returns b, c, d (n,) such that on [x[k], x[k+1]]: y[k] + dx*(b[k] + dx*(c[k] + dx*d[k])).
+    """
+    n = len(x)
+    b = [0.0] * n
+    c = [0.0] * n
+    d = [0.0] * n
+    if n == 2:
+        t = max(_TINY_NUMBER, x[1] - x[0])
+        b[0] = b[1] = (y[1] - y[0]) / t
+        return b, c, d
+    nm1, nm2 = n - 1, n - 2
+    d[0] = max(_TINY_NUMBER, x[1] - x[0])
+    c[1] = (y[1] - y[0]) / d[0]
+    for i in range(1, nm1):
+        d[i] = max(_TINY_NUMBER, x[i + 1] - x[i])
+        b[i] = 2.0 * (d[i - 1] + d[i])
+        c[i + 1] = (y[i + 1] - y[i]) / d[i]
+        c[i] = c[i + 1] - c[i]
+    # End conditions: third derivatives at x[0] and x[n-1] from divided differences.
+    b[0] = -d[0]
+    b[nm1] = -d[nm2]
+    c[0] = 0.0
+    c[nm1] = 0.0
+    if n > 3:
+        d31 = max(_TINY_NUMBER, x[3] - x[1])
+        d20 = max(_TINY_NUMBER, x[2] - x[0])
+        d1 = max(_TINY_NUMBER, x[nm1] - x[n - 3])
+        d2 = max(_TINY_NUMBER, x[nm2] - x[n - 4])
+        d30 = max(_TINY_NUMBER, x[3] - x[0])
+        d3 = max(_TINY_NUMBER, x[nm1] - x[n - 4])
+        c[0] = c[2] / d31 - c[1] / d20
+        c[nm1] = c[nm2] / d1 - c[n - 3] / d2
+        c[0] = c[0] * d[0] * d[0] / d30
+        c[nm1] = -c[nm1] * d[nm2] * d[nm2] / d3
+    for i in range(1, n):  # forward elimination
+        t = d[i - 1] / b[i - 1]
+        b[i] -= t * d[i - 1]
+        c[i] -= t * c[i - 1]
+    c[nm1] /= b[nm1]  # back substitution
+    for j in range(nm1):
+        i = nm2 - j
+        c[i] = (c[i] - d[i] * c[i + 1]) / b[i]
+    b[nm1] = (y[nm1] - y[nm2]) / d[nm2] + d[nm2] * (c[nm2] + 2.0 * c[nm1])
+    for i in range(nm1):
+        b[i] = (y[i + 1] - y[i]) / d[i] - d[i] * (c[i + 1] + 2.0 * c[i])
+        d[i] = (c[i + 1] - c[i]) / d[i]
+        c[i] *= 3.0
+    c[nm1] *= 3.0
+    d[nm1] = d[nm2]
+    return b, c, d
+
+
+@dataclass(frozen=True, eq=False)
+class PiecewiseLinearFunction(Function):
+    """Linear interpolation through (x, y), x strictly increasing (n,), n >= 2; linear outside."""
+
+    kind: ClassVar[str] = "PiecewiseLinearFunction"
+    x: FloatArray = field(default_factory=lambda: np.zeros(0))
+    y: FloatArray = field(default_factory=lambda: np.zeros(0))
+    b: FloatArray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        x, y = _check_xy("PiecewiseLinearFunction", self.x, self.y, 2)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "y", y)
+        b = np.empty_like(x)
+        b[:-1] = (y[1:] - y[:-1]) / np.maximum(_TINY_NUMBER, x[1:] - x[:-1])
+        b[-1] = b[-2]
+        object.__setattr__(self, "b", b)
+
+    @property
+    def knots(self) -> FloatArray:
+        return self.x
+
+    def _eval(self, x: ArrayLike, deriv: bool) -> FloatArray:
+        t = _as_array(x)
+        shape = t.shape
+        t = t.ravel()
+        xk, yk, b = self.x, self.y, self.b
+        n = xk.size
+        out = np.full(t.shape, np.nan)
+        left = t < xk[0]
+        right = ~left & (t > xk[-1])
+        at0 = ~left & ~right & (np.abs(t - xk[0]) <= _ROUNDOFF_ERROR)
+        at1 = ~left & ~right & ~at0 & (np.abs(t - xk[-1]) <= _ROUNDOFF_ERROR)
+        inner = ~left & ~right & ~at0 & ~at1 & ~np.isnan(t)
+        if deriv:
+            out[left | at0] = b[0]
+            out[right | at1] = b[n - 1]
+        else:
+            out[left] = yk[0] + (t[left] - xk[0]) * b[0]
+            out[right] = yk[n - 1] + (t[right] - xk[n - 1]) * b[n - 1]
+            out[at0] = yk[0]
+            out[at1] = yk[n - 1]
+        if inner.any():
+            ti = t[inner]
+            k = _opensim_interval(xk, ti)
+            out[inner] = b[k] if deriv else yk[k] + (ti - xk[k]) * b[k]
+        return out.reshape(shape)
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        return self._eval(x, False)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return self._eval(x, True)
+
+
+@dataclass(frozen=True, eq=False)
+class PiecewiseConstantFunction(Function):
+    """Step function: y[k] on [x[k], x[k+1]], y[0] left of x[0], y[-1] right of x[-1];
+    x strictly increasing (n,), n >= 1.  Derivative 0 everywhere (as OpenSim)."""
+
+    kind: ClassVar[str] = "PiecewiseConstantFunction"
+    x: FloatArray = field(default_factory=lambda: np.zeros(0))
+    y: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        x, y = _check_xy("PiecewiseConstantFunction", self.x, self.y, 1)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "y", y)
+
+    @property
+    def knots(self) -> FloatArray:
+        return self.x
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        t = _as_array(x)
+        shape = t.shape
+        t = t.ravel()
+        xk, yk = self.x, self.y
+        out = np.full(t.shape, np.nan)
+        left = (t < xk[0]) | (np.abs(t - xk[0]) <= _ROUNDOFF_ERROR)
+        right = ~left & ((t > xk[-1]) | (np.abs(t - xk[-1]) <= _ROUNDOFF_ERROR))
+        inner = ~left & ~right & ~np.isnan(t)
+        out[left] = yk[0]
+        out[right] = yk[-1]
+        if inner.any():
+            out[inner] = yk[_opensim_interval(xk, t[inner])]
+        return out.reshape(shape)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return _out(np.zeros(np.shape(x)))
+
+
+# ---------------------------------------------------------------------------------------------
+# GCVSpline: port of Woltring's GCVSPL (Simbody SimTKmath/src/gcvspl.cpp), K = 1, unit weights.
+# Band matrices are stored as lists of columns, column i (1..n) holding rows -w..w at [r + w].
+# ---------------------------------------------------------------------------------------------
+def _gcv_basis(m: int, n: int, x: list[float]) -> tuple[list[list[float]], float]:
+    """BASIS: B(1-m:m-1, n) and its mean absolute row sum bl."""
+    mm1 = m - 1
+    B = [[0.0] * (2 * m - 1) for _ in range(n + 1)]
+    if m == 1:
+        for i in range(1, n + 1):
+            B[i][0] = 1.0
+        return B, 1.0
+    mp1, m2 = m + 1, 2 * m
+    for l_ in range(1, n + 1):
+        q = [0.0] * (2 * m)  # q[j + mm1], j = -mm1..m
+        q[mm1 + mm1] = 1.0
+        if l_ != 1 and l_ != n:
+            q[mm1 + mm1] = 1.0 / (x[l_ + 1] - x[l_ - 1])
+        arg = x[l_]
+        for i in range(3, m2 + 1):
+            ir = mp1 - i
+            v = q[ir + mm1]
+            if l_ < i:
+                for j in range(l_ + 1, i + 1):
+                    u = v
+                    v = q[ir + 1 + mm1]
+                    q[ir + mm1] = u + (x[j] - arg) * v
+                    ir += 1
+            j1 = max(l_ - i + 1, 1)
+            j2 = min(l_ - 1, n - i)
+            if j1 <= j2:
+                if i < m2:
+                    for j in range(j1, j2 + 1):
+                        yy = x[i + j]
+                        u = v
+                        v = q[ir + 1 + mm1]
+                        q[ir + mm1] = u + (v - u) * (yy - arg) / (yy - x[j])
+                        ir += 1
+                else:
+                    for j in range(j1, j2 + 1):
+                        u = v
+                        v = q[ir + 1 + mm1]
+                        q[ir + mm1] = (arg - x[j]) * u + (x[i + j] - arg) * v
+                        ir += 1
+            nmip1 = n - i + 1
+            if nmip1 < l_:
+                for j in range(nmip1, l_):
+                    u = v
+                    v = q[ir + 1 + mm1]
+                    q[ir + mm1] = (arg - x[j]) * u + v
+                    ir += 1
+        for j in range(-mm1, mm1 + 1):
+            B[l_][j + mm1] = q[j + mm1]
+    for i in range(1, mm1 + 1):
+        for k in range(i, mm1 + 1):
+            B[i][-k + mm1] = 0.0
+            B[n + 1 - i][k + mm1] = 0.0
+    bl = 0.0
+    for i in range(1, n + 1):
+        for k in range(-mm1, mm1 + 1):
+            bl += abs(B[i][k + mm1])
+    return B, bl / n
+
+
+def _gcv_prep(m: int, n: int, x: list[float], w: list[float]) -> tuple[list[list[float]], float]:
+    """PREP: WE(-m:m, n), the weighted divided-difference matrix, and its mean abs sum el."""
+    m2, mp1 = 2 * m, m + 1
+    m2m1, m2p1 = m2 - 1, m2 + 1
+    nm = n - m
+    we = [0.0] * (n * m2p1 + 1)  # 1-based flat, WE(k, i) = we[(k + m + 1) + (i - 1) * m2p1]
+    f1 = -1.0
+    if m != 1:
+        for i in range(2, m + 1):
+            f1 = -f1 * i
+        for i in range(mp1, m2m1 + 1):
+            f1 *= i
+    i1, i2, jm = 1, m, mp1
+    for j in range(1, n + 1):
+        inc = m2p1
+        if j > nm:
+            f1 = -f1
+            f = f1
+        else:
+            if j < mp1:
+                inc = 1
+                f = f1
+            else:
+                f = f1 * (x[j + m] - x[j - m])
+        if j > mp1:
+            i1 += 1
+        if i2 < n:
+            i2 += 1
+        jj = jm
+        ff = f
+        yy = x[i1]
+        i1p1 = i1 + 1
+        for i in range(i1p1, i2 + 1):
+            ff /= yy - x[i]
+        we[jj] = ff
+        jj += m2
+        i2m1 = i2 - 1
+        if i1p1 <= i2m1:
+            for l_ in range(i1p1, i2m1 + 1):
+                ff = f
+                yy = x[l_]
+                for i in range(i1, l_):
+                    ff /= yy - x[i]
+                for i in range(l_ + 1, i2 + 1):
+                    ff /= yy - x[i]
+                we[jj] = ff
+                jj += m2
+        ff = f
+        yy = x[i2]
+        for i in range(i1, i2m1 + 1):
+            ff /= yy - x[i]
+        we[jj] = ff
+        jj += m2
+        jm += inc
+    kl = 1
+    n2m = m2p1 * n + 1
+    for i in range(1, m + 1):
+        ku = kl + m - i
+        for k in range(kl, ku + 1):
+            we[k] = 0.0
+            we[n2m - k] = 0.0
+        kl += m2p1
+    jj = 0
+    el = 0.0
+    for i in range(1, n + 1):
+        wi = w[i]
+        for _ in range(m2p1):
+            jj += 1
+            we[jj] /= wi
+            el += abs(we[jj])
+    WE = [[0.0] * m2p1 for _ in range(n + 1)]
+    for i in range(1, n + 1):
+        for k in range(-m, m + 1):
+            WE[i][k + m] = we[(k + m + 1) + (i - 1) * m2p1]
+    return WE, el / n
+
+
+def _gcv_bandet(E: list[list[float]], m: int, n: int) -> None:
+    """BANDET: in-place LU decomposition of the band matrix E(-m:m, n)."""
+    if m <= 0:
+        return
+    for i in range(1, n + 1):
+        di = E[i][m]
+        mi = min(m, i - 1)
+        if mi >= 1:
+            for k in range(1, mi + 1):
+                di -= E[i][-k + m] * E[i - k][k + m]
+            E[i][m] = di
+        lm = min(m, n - i)
+        if lm >= 1:
+            for l_ in range(1, lm + 1):
+                dl = E[i + l_][-l_ + m]
+                km = min(m - l_, i - 1)
+                if km >= 1:
+                    du = E[i][l_ + m]
+                    for k in range(1, km + 1):
+                        du -= E[i][-k + m] * E[i - k][l_ + k + m]
+                        dl -= E[l_ + i][-l_ - k + m] * E[i - k][k + m]
+                    E[i][l_ + m] = du
+                E[i + l_][-l_ + m] = dl / di
+
+
+def _gcv_bansol(E: list[list[float]], y: list[float], m: int, n: int) -> list[float]:
+    """BANSOL: solve with the LU-decomposed band matrix; c (1-based, n)."""
+    c = [0.0] * (n + 1)
+    if m == 0:
+        for i in range(1, n + 1):
+            c[i] = y[i] / E[i][m]
+        return c
+    c[1] = y[1]
+    for i in range(2, n + 1):
+        mi = min(m, i - 1)
+        dd = y[i]
+        for l_ in range(1, mi + 1):
+            dd -= E[i][-l_ + m] * c[i - l_]
+        c[i] = dd
+    c[n] /= E[n][m]
+    for i in range(n - 1, 0, -1):
+        mi = min(m, n - i)
+        dd = c[i]
+        for l_ in range(1, mi + 1):
+            dd -= E[i][l_ + m] * c[i + l_]
+        c[i] = dd / E[i][m]
+    return c
+
+
+def _gcv_trinv(Bw: list[list[float]], E: list[list[float]], m: int, n: int) -> float:
+    """TRINV: trace of Bw * inverse(E) from the central 2m+1 bands of E^-1 (E overwritten)."""
+    E[n][m] = 1.0 / E[n][m]
+    for i in range(n - 1, 0, -1):
+        mi = min(m, n - i)
+        dd = 1.0 / E[i][m]
+        for k in range(1, mi + 1):
+            E[n][k + m] = E[i][k + m] * dd
+            E[1][-k + m] = E[k + i][-k + m]
+        dd += dd
+        for j in range(mi, 0, -1):
+            du = 0.0
+            dl = 0.0
+            for k in range(1, mi + 1):
+                du -= E[n][k + m] * E[i + k][j - k + m]
+                dl -= E[1][-k + m] * E[i + j][k - j + m]
+            E[i][j + m] = du
+            E[j + i][-j + m] = dl
+            dd -= E[n][j + m] * dl + E[1][-j + m] * du
+        E[i][m] = dd * 0.5
+    dd = 0.0
+    for i in range(1, n + 1):
+        mn = -min(m, i - 1)
+        mp = min(m, n - i)
+        for k in range(mn, mp + 1):
+            dd += Bw[i][k + m] * E[k + i][-k + m]
+    for k in range(1, m + 1):
+        E[n][k + m] = 0.0
+        E[1][-k + m] = 0.0
+    return dd
+
+
+def _gcv_splc(m: int, n: int, y: list[float], wx: list[float], mode: int, val: float, p: float,
+              eps: float, B: list[list[float]], WE: list[list[float]], el: float,
+              stat: list[float]) -> tuple[float, list[float]]:
+    """SPLC: fit for smoothing parameter p; returns (criterion, c 1-based)."""
+    dp = p
+    stat[4] = p
+    pel = p * el
+    if pel < eps:
+        dp = eps / el
+        stat[4] = 0.0
+    if pel * eps > 1.0:
+        dp = 1.0 / (el * eps)
+        stat[4] = dp
+    E = [[0.0] * (2 * m + 1) for _ in range(n + 1)]
+    for i in range(1, n + 1):
+        km = -min(m, i - 1)
+        kp = min(m, n - i)
+        for l_ in range(km, kp + 1):
+            if abs(l_) == m:
+                E[i][l_ + m] = dp * WE[i][l_ + m]
+            else:
+                E[i][l_ + m] = B[i][l_ + m - 1] + dp * WE[i][l_ + m]
+    _gcv_bandet(E, m, n)
+    c = _gcv_bansol(E, y, m, n)
+    stat[3] = _gcv_trinv(WE, E, m, n) * dp
+    trn = stat[3] / n
+    esn = 0.0
+    for i in range(1, n + 1):
+        dt = -y[i]
+        km = -min(m - 1, i - 1)
+        kp = min(m - 1, n - i)
+        for l_ in range(km, kp + 1):
+            dt += B[i][l_ + m - 1] * c[i + l_]
+        esn += dt * dt * wx[i] * 1.0
+    esn /= n * 1
+    stat[6] = esn / trn
+    stat[1] = stat[6] / trn
+    stat[2] = esn
+    if abs(mode) != 3:
+        stat[5] = stat[6] - esn
+        ret = 0.0
+        if abs(mode) == 2:
+            ret = stat[1]
+        if abs(mode) == 4:
+            ret = abs(stat[3] - val)
+    else:
+        stat[5] = esn - val * (trn * 2.0 - 1.0)
+        ret = stat[5]
+    return ret, c
+
+
+def _gcvspl(x_: Sequence[float], y_: Sequence[float], m: int, md: int, val: float) -> list[float]:
+    """GCVSPL with unit weights: natural spline coefficients c (n,) of half order m."""
+    n = len(x_)
+    x = [0.0, *map(float, x_)]
+    y = [0.0, *map(float, y_)]
+    wx = [1.0] * (n + 1)
+    if m <= 0 or n < 2 * m:
+        raise ValueError(f"GCVSpline of half order {m} needs at least {2 * m} points, got {n}")
+    eps = 1e-15
+    B, r1 = _gcv_basis(m, n, x)
+    WE, el = _gcv_prep(m, n, x, wx)
+    el /= r1
+    stat = [0.0] * 7
+
+    def splc(p: float) -> tuple[float, list[float]]:
+        return _gcv_splc(m, n, y, wx, md, val, p, eps, B, WE, el, stat)
+
+    if abs(md) == 1:
+        return splc(val)[1][1:]
+    budget = 10000  # the Fortran loops have no iteration limit; guard against pathological data
+    r1 = 1.0 / el
+    r2 = r1 * 2.0
+    gf2 = splc(r2)[0]
+    while True:  # L40: decrease p while the criterion decreases
+        gf1 = splc(r1)[0]
+        budget -= 1
+        if gf1 > gf2:
+            break
+        if stat[4] <= 0.0 or budget <= 0:
+            return splc(r1)[1][1:]
+        r2, gf2 = r1, gf1
+        r1 /= 2.0
+    r3 = r2 * 2.0  # L50
+    while True:  # L60: increase p while the criterion decreases
+        gf3 = splc(r3)[0]
+        budget -= 1
+        if gf3 > gf2:
+            break
+        if stat[4] >= 999999999999999.88 or budget <= 0:
+            return splc(r1)[1][1:]
+        r2, gf2 = r3, gf3
+        r3 *= 2.0
+    r2, gf2 = r3, gf3  # L70: golden section search
+    alpha = (r2 - r1) / 1.618033983
+    r4 = r1 + alpha
+    r3 = r2 - alpha
+    gf3 = splc(r3)[0]
+    gf4 = splc(r4)[0]
+    while budget > 0:  # L80
+        budget -= 1
+        if gf3 <= gf4:
+            r2, gf2 = r4, gf4
+            err = (r2 - r1) / (r1 + r2)
+            if err * err + 1.0 == 1.0 or err <= 1e-6:
+                break
+            r4, gf4 = r3, gf3
+            alpha /= 1.618033983
+            r3 = r2 - alpha
+            gf3 = splc(r3)[0]
+        else:
+            r1, gf1 = r3, gf3
+            err = (r2 - r1) / (r1 + r2)
+            if err * err + 1.0 == 1.0 or err <= 1e-6:
+                break
+            r3, gf3 = r4, gf4
+            alpha /= 1.618033983
+            r4 = r1 + alpha
+            gf4 = splc(r4)[0]
+    r1 = (r1 + r2) * 0.5  # L90
+    return splc(r1)[1][1:]  # L100
+
+
+def _gcv_splder(ider: int, m: int, t: FloatArray, x: list[float], c: list[float], l_: int) -> FloatArray:
+    """SPLDER for all t (p,) lying in the same interval l_ (x[l_] <= t < x[l_+1], 0..n).
+
+    x and c are 1-based lists.  Same operations as the Fortran, element-wise over t.
+    """
+    n = len(x) - 1
+    m2 = 2 * m
+    k = m2 - ider
+    if k < 1:
+        return np.zeros_like(t)
+    tt = t
+    mp1, npm, m2m1 = m + 1, n + m, m2 - 1
+    k1, nk = k - 1, n - k
+    lk1 = l_ - k + 1
+    jl, ju, ii, ml = l_ + 1, l_ + m2, n - m2, -l_
+    q: list = [0.0] * (m2 + 1)
+    for j in range(jl, ju + 1):
+        q[j + ml] = c[j - m] if mp1 <= j <= npm else 0.0
+    if ider > 0:
+        jl -= m2
+        ml += m2
+        for i in range(1, ider + 1):
+            jl += 1
+            ii += 1
+            j1 = max(1, jl)
+            j2 = min(l_, ii)
+            mi = m2 - i
+            j = j2 + 1
+            if j1 <= j2:
+                for _ in range(j1, j2 + 1):
+                    j -= 1
+                    jm = ml + j
+                    q[jm] = (q[jm] - q[jm - 1]) / (x[j + mi] - x[j])
+            if jl >= 1:
+                continue
+            i1 = i + 1
+            j = ml + 1
+            if i1 <= ml:
+                for _ in range(i1, ml + 1):
+                    j -= 1
+                    q[j] = -q[j - 1]
+        for j in range(1, k + 1):
+            q[j] = q[j + ider]
+    if k1 >= 1:
+        for i in range(1, k1 + 1):
+            nki = nk + i
+            ir = k
+            jj = l_
+            ki = k - i
+            nki1 = nki + 1
+            if l_ >= nki1:
+                for _ in range(nki1, l_ + 1):
+                    q[ir] = q[ir - 1] + (tt - x[jj]) * q[ir]
+                    jj -= 1
+                    ir -= 1
+            lk1i = lk1 + i
+            j1 = max(1, lk1i)
+            j2 = min(l_, nki)
+            if j1 <= j2:
+                for _ in range(j1, j2 + 1):
+                    xjki = x[jj + ki]
+                    z = q[ir]
+                    q[ir] = z + (xjki - tt) * (q[ir - 1] - z) / (xjki - x[jj])
+                    ir -= 1
+                    jj -= 1
+            if lk1i <= 0:
+                jj = ki
+                for _ in range(1, 1 - lk1i + 1):
+                    q[ir] = q[ir] + (x[jj] - tt) * q[ir - 1]
+                    jj -= 1
+                    ir -= 1
+    z = q[k]
+    if ider > 0:
+        for j in range(k, m2m1 + 1):
+            z = z * j
+    return np.broadcast_to(np.asarray(z, dtype=np.float64), t.shape).copy()
+
+
+@dataclass(frozen=True, eq=False)
+class GCVSpline(Function):
+    """Woltring natural spline of degree 2*half_order-1 through (x, y) (n,), n >= 2*half_order.
+
+    error_variance 0 interpolates (as OpenSim's default), > 0 smooths to that variance,
+    < 0 chooses the smoothing by generalized cross-validation.  Outside the knots it is a
+    polynomial of degree half_order-1.
+    """
+
+    kind: ClassVar[str] = "GCVSpline"
+    x: FloatArray = field(default_factory=lambda: np.zeros(0))
+    y: FloatArray = field(default_factory=lambda: np.zeros(0))
+    half_order: int = 3
+    error_variance: float = 0.0
+    coefficients: FloatArray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        m = int(self.half_order)
+        if not 1 <= m <= 4:
+            raise ValueError(f"GCVSpline half_order must be 1..4 (degree 1, 3, 5, 7), got {self.half_order}")
+        x, y = _check_xy("GCVSpline", self.x, self.y, 2 * m)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "y", y)
+        object.__setattr__(self, "half_order", m)
+        md = 3 if self.error_variance >= 0.0 else 2
+        val = float(self.error_variance) if md == 3 else 0.0
+        object.__setattr__(self, "coefficients", np.array(_gcvspl(x.tolist(), y.tolist(), m, md, val)))
+
+    @property
+    def degree(self) -> int:
+        """Polynomial degree of the pieces: 2 * half_order - 1."""
+        return 2 * self.half_order - 1
+
+    @property
+    def knots(self) -> FloatArray:
+        return self.x
+
+    def derivative_n(self, x: ArrayLike, order: int) -> FloatArray:
+        """order-th derivative (order >= 0) at x (float or array); array of x's shape."""
+        t = _as_array(x)
+        shape = t.shape
+        t = t.ravel()
+        xl = [0.0, *self.x.tolist()]
+        cl = [0.0, *self.coefficients.tolist()]
+        out = np.empty(t.shape)
+        interval = np.searchsorted(self.x, t, side="right")  # SEARCH: x[l] <= t < x[l+1]
+        for l_ in np.unique(interval):
+            sel = interval == l_
+            out[sel] = _gcv_splder(order, self.half_order, t[sel], xl, cl, int(l_))
+        return out.reshape(shape)
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        return self.derivative_n(x, 0)
+
+    def derivative(self, x: ArrayLike) -> FloatArray:
+        return self.derivative_n(x, 1)
+
+
+# ---------------------------------------------------------------------------------------------
+# XML parsing
+# ---------------------------------------------------------------------------------------------
+FUNCTION_TAGS: frozenset[str] = frozenset({
+    "Constant", "LinearFunction", "PolynomialFunction", "SimmSpline", "NaturalCubicSpline",
+    "natCubicSpline", "GCVSpline", "PiecewiseLinearFunction", "PiecewiseConstantFunction",
+    "MultiplierFunction", "Sine", "StepFunction",
+})
+
+
+def _local(tag: object) -> str:
+    if not isinstance(tag, str):
+        return ""
+    return tag.rsplit("}", 1)[-1]
+
+
+def _children(element) -> list:
+    return [ch for ch in element if isinstance(ch.tag, str)]
+
+
+def function_child(parent) -> object | None:
+    """The first child element of ``parent`` whose tag is a function type o2m knows
+    (FUNCTION_TAGS), else None.  Use on TransformAxis, <coupled_coordinates_function>, ..."""
+    kids = _children(parent)
+    for ch in kids:
+        if _local(ch.tag) in FUNCTION_TAGS:
+            return ch
+    return None
+
+
+def _prop(element, name: str):
+    for ch in _children(element):
+        if _local(ch.tag) == name:
+            return ch
+    return None
+
+
+def _numbers(element, name: str) -> FloatArray | None:
+    ch = _prop(element, name)
+    if ch is None:
+        return None
+    text = (ch.text or "").strip()
+    if not text:
+        return np.zeros(0)
+    try:
+        return np.array([float(tok) for tok in text.replace(",", " ").split()], dtype=np.float64)
+    except ValueError as exc:
+        raise ValueError(f"<{name}> holds a value that is not a number: {text!r}") from exc
+
+
+def _scalar(element, name: str, default: float) -> float:
+    v = _numbers(element, name)
+    if v is None:
+        return default
+    if v.size != 1:
+        raise ValueError(f"<{name}> must hold one number, got {v.size}")
+    if not math.isfinite(v[0]):
+        raise ValueError(f"<{name}> must be finite, got {v[0]!r}")
+    return float(v[0])
+
+
+def _xy(element) -> tuple[FloatArray, FloatArray]:
+    x = _numbers(element, "x")
+    y = _numbers(element, "y")
+    return (np.zeros(0) if x is None else x), (np.zeros(0) if y is None else y)
+
+
+def parse_function(element) -> Function:
+    """Build the Function an OpenSim 4.x function element (lxml element; tag = type) describes.
+
+    Raises UnsupportedElementError (naming the element, its name attribute and source line)
+    for an unknown type or malformed numbers (x/y lengths differ, too few points,
+    non-increasing x, non-numeric text).
+    """
+    tag = _local(element.tag)
+    name = element.get("name")
+    line = getattr(element, "sourceline", None)
+    meta = {"name": name, "tag": tag, "line": line}
+
+    def fail(message: str) -> UnsupportedElementError:
+        return UnsupportedElementError(message, element=tag or str(element.tag), name=name, line=line)
+
+    if tag not in FUNCTION_TAGS:
+        raise fail(f"is not a function type o2m supports (supported: {', '.join(sorted(FUNCTION_TAGS))})")
+    try:
+        if tag == "Constant":
+            return Constant(_scalar(element, "value", 0.0), **meta)
+        if tag == "LinearFunction":
+            c = _numbers(element, "coefficients")
+            if c is None:
+                c = np.array([1.0, 0.0])
+            if c.size != 2 or not np.all(np.isfinite(c)):
+                raise ValueError(f"<coefficients> must hold 2 finite numbers (slope intercept), got {c.size}")
+            return LinearFunction(float(c[0]), float(c[1]), **meta)
+        if tag == "PolynomialFunction":
+            c = _numbers(element, "coefficients")
+            return PolynomialFunction(np.ones(1) if c is None else c, **meta)
+        if tag in ("SimmSpline", "NaturalCubicSpline", "natCubicSpline"):
+            return SimmSpline(*_xy(element), **meta)
+        if tag == "PiecewiseLinearFunction":
+            return PiecewiseLinearFunction(*_xy(element), **meta)
+        if tag == "PiecewiseConstantFunction":
+            return PiecewiseConstantFunction(*_xy(element), **meta)
+        if tag == "GCVSpline":
+            if _prop(element, "half_order") is None:
+                what = " (OpenSim 4.6 ignores <degree>)" if _prop(element, "degree") is not None else ""
+                raise ValueError(f"GCVSpline has no <half_order>{what}")
+            h = _scalar(element, "half_order", 0.0)
+            if h != int(h):
+                raise ValueError(f"<half_order> must be an integer, got {h!r}")
+            return GCVSpline(*_xy(element), half_order=int(h),
+                             error_variance=_scalar(element, "error_variance", 0.0), **meta)
+        if tag == "Sine":
+            return Sine(_scalar(element, "amplitude", 1.0), _scalar(element, "omega", 1.0),
+                        _scalar(element, "phase", 0.0), _scalar(element, "offset", 0.0), **meta)
+        if tag == "StepFunction":
+            return StepFunction(_scalar(element, "transition_start_time", 0.99),
+                                _scalar(element, "transition_end_time", 1.01),
+                                _scalar(element, "start_value", 0.0),
+                                _scalar(element, "end_value", 1.0), **meta)
+        if tag == "MultiplierFunction":
+            wrapper = _prop(element, "function")
+            inner = None
+            if wrapper is not None:
+                kids = _children(wrapper)
+                inner = kids[0] if kids else None
+            else:
+                inner = function_child(element)
+            if inner is None:
+                raise ValueError("MultiplierFunction has no function to multiply")
+            return MultiplierFunction(parse_function(inner), _scalar(element, "scale", 1.0), **meta)
+    except UnsupportedElementError:
+        raise
+    except ValueError as exc:
+        raise fail(str(exc)) from None
+    raise fail("is not a function type o2m supports")  # pragma: no cover
+
+
+# ---------------------------------------------------------------------------------------------
+# Polynomial approximation
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PolynomialFit:
+    """p(x) = sum_j coef[j] * (x - x0)**j approximating a function on [lo, hi].
+
+    coef: (degree+1,), lowest power first.  max_error / rms_error: absolute errors (units of
+    the function's value) measured on a grid 8x denser than the fitting grid plus the
+    function's knots.
+    """
+
+    coef: FloatArray
+    max_error: float
+    rms_error: float
+    lo: float
+    hi: float
+    x0: float
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        """p(x) for x of any shape."""
+        return _out(np.polynomial.polynomial.polyval(_as_array(x) - self.x0, self.coef))
+
+
+def _grid(fn: Function, lo: float, hi: float, n: int) -> FloatArray:
+    xs = np.linspace(lo, hi, n)
+    k = getattr(fn, "knots", np.empty(0))
+    k = np.asarray(k, dtype=np.float64)
+    k = k[(k > lo) & (k < hi)]
+    return np.unique(np.concatenate([xs, k])) if k.size else xs
+
+
+def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 4,
+                   n: int = 2001) -> PolynomialFit:
+    """Minimax polynomial of ``degree`` in (x - x0) approximating fn on [lo, hi].
+
+    Fits on n uniform points (plus fn's knots inside): least squares first, then the minimax
+    (Chebyshev) fit by linear programming; keeps whichever has the smaller maximum error.
+    """
+    from scipy.optimize import linprog
+
+    lo, hi, x0 = float(lo), float(hi), float(x0)
+    if not hi > lo:
+        raise ValueError(f"fit_polynomial needs hi > lo, got [{lo}, {hi}]")
+    if degree < 0 or n < degree + 2:
+        raise ValueError("fit_polynomial needs degree >= 0 and n >= degree + 2")
+    xs = _grid(fn, lo, hi, n)
+    f = np.asarray(fn(xs), dtype=np.float64)
+    if not np.all(np.isfinite(f)):
+        raise ValueError("function is not finite on [lo, hi]")
+    # Scaled variable v = (x - x0) / s keeps the Vandermonde matrix well conditioned.
+    s = max(abs(lo - x0), abs(hi - x0), 1e-300)
+    V = np.vander((xs - x0) / s, degree + 1, increasing=True)
+    unscale = s ** -np.arange(degree + 1, dtype=np.float64)
+
+    check = _grid(fn, lo, hi, 8 * (n - 1) + 1)
+    fc = np.asarray(fn(check), dtype=np.float64)
+
+    def errors(coef: FloatArray) -> tuple[float, float]:
+        e = np.polynomial.polynomial.polyval(check - x0, coef) - fc
+        return float(np.max(np.abs(e))), float(np.sqrt(np.mean(e * e)))
+
+    a_ls = np.linalg.lstsq(V, f, rcond=None)[0]
+    best = a_ls * unscale
+    best_err = errors(best)
+
+    fscale = max(float(np.max(np.abs(f))), 1e-300)
+    if best_err[0] > 1e-14 * fscale:
+        # minimise t subject to |V a - f| <= t, in units of fscale; variables (a, t).
+        m = V.shape[0]
+        ones = np.ones((m, 1))
+        A_ub = np.block([[V, -ones], [-V, -ones]])
+        b_ub = np.concatenate([f, -f]) / fscale
+        cost = np.zeros(degree + 2)
+        cost[-1] = 1.0
+        try:
+            res = linprog(cost, A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * (degree + 1) + [(0, None)],
+                          method="highs", options={"primal_feasibility_tolerance": 1e-10,
+                                                   "dual_feasibility_tolerance": 1e-10})
+            if res.status == 0:
+                cand = res.x[:-1] * fscale * unscale
+                err = errors(cand)
+                if err[0] < best_err[0]:
+                    best, best_err = cand, err
+        except ValueError:
+            pass
+    return PolynomialFit(coef=best, max_error=best_err[0], rms_error=best_err[1], lo=lo, hi=hi, x0=x0)

@@ -1,0 +1,470 @@
+"""Building the MuJoCo model (an ``mujoco.MjSpec``) from a :class:`~o2m.skeleton.Skeleton`.
+
+How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the canonical form):
+
+* The MuJoCo body is the OpenSim body: same name, same frame. Its fixed ``pos``/``quat`` is
+  the OpenSim transform at the reference pose (every coordinate at its default value), so
+  MuJoCo's ``qpos0`` is OpenSim's default pose.
+* Each moving translation axis becomes a slide joint and each moving rotation axis a hinge.
+  Slides come first, along the joint's parent-frame axes; hinges follow in OpenSim's order,
+  about body-fixed axes through the child joint frame's origin. Constant axes at the
+  reference pose are folded into the body's fixed transform, so the joint axes are rotated
+  by the constant rotations that come after them in the sequence.
+* A joint's value is the axis value ``f(q)``. The first axis whose function is the identity
+  of a coordinate becomes *the* joint of that coordinate and carries its name, range and
+  limits. Every other moving axis is driven by a MuJoCo joint equality (a quartic in the
+  deviation of the driving coordinate from its reference value). When ``f`` is not linear,
+  the quartic is fitted over the coordinate's range and its worst error is recorded.
+* CoordinateCouplerConstraints become joint equalities the same way.
+* A locked coordinate, and every axis or coupled coordinate that depends only on locked
+  coordinates, is folded into the fixed body transforms at its default value: exact, and
+  stiffer in simulation than a soft MuJoCo equality would be. It then has no MuJoCo joint.
+* OpenSim ground (Y-up) maps to MuJoCo's world (Z-up) by :data:`o2m.transforms.OSIM_TO_MJ`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+from . import geometry
+from .functions import fit_polynomial
+from .skeleton import Coordinate, Joint, Skeleton, Skipped, TransformAxis
+from .transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat, quat_to_matrix
+
+#: Mass (kg) and principal inertia (kg m²) given to massless moving bodies, which MuJoCo rejects.
+MIN_MASS = 1e-8
+MIN_INERTIA = 1e-12
+#: Range over which a coupling with an unbounded driving coordinate is fitted (rad or m).
+UNBOUNDED_FIT_RANGE = {"rotation": (-np.pi, np.pi), "translation": (-1.0, 1.0)}
+#: Samples used to decide whether a function is linear over a range.
+_LINEAR_SAMPLES = 401
+
+
+@dataclass
+class Approximation:
+    """A place where the MuJoCo model only approximates OpenSim, with the measured error."""
+
+    element: str
+    name: str
+    what: str
+    max_error: float
+    units: str
+    detail: str = ""
+    joint: str = ""  # the MuJoCo joint whose motion is approximated, if any
+
+
+@dataclass
+class JointRecord:
+    """One MuJoCo joint: what drives it and how."""
+
+    name: str
+    kind: str  # "hinge" or "slide"
+    opensim_joint: str
+    axis: str
+    coordinate: str | None  # the OpenSim coordinate whose value this joint is, if any
+    driven_by: str | None  # MuJoCo joint of the equality that drives it, if any
+    relation: str  # "coordinate", "linear", "quartic fit"
+
+
+@dataclass
+class BuildResult:
+    spec: mujoco.MjSpec
+    joints: list[JointRecord] = field(default_factory=list)
+    approximations: list[Approximation] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+def _linear(fn: Callable[[np.ndarray], np.ndarray], lo: float, hi: float) -> tuple[float, float] | None:
+    """(slope, intercept) when ``fn`` is linear on [lo, hi] to 1e-12 (relative), else None."""
+    x = np.linspace(lo, hi, _LINEAR_SAMPLES)
+    y = np.asarray(fn(x), dtype=float)
+    if hi - lo < 1e-15:
+        return 0.0, float(y[0])
+    slope = (y[-1] - y[0]) / (hi - lo)
+    icpt = y[0] - slope * lo
+    scale = max(1.0, float(np.max(np.abs(y))))
+    if np.max(np.abs(y - (slope * x + icpt))) <= 1e-12 * scale:
+        return float(slope), float(icpt)
+    return None
+
+
+class _Driver:
+    """An independent coordinate and a function of it: the value of a coordinate or an axis."""
+
+    def __init__(self, base: str, fn: Callable[[np.ndarray], np.ndarray]):
+        self.base, self.fn = base, fn
+
+    def then(self, f: Callable[[np.ndarray], np.ndarray]) -> _Driver:
+        inner = self.fn
+        return _Driver(self.base, lambda x: f(inner(x)))
+
+
+class MjcfBuilder:
+    """Builds an ``MjSpec`` from a skeleton; :func:`add_geometry` adds its geometry after."""
+
+    def __init__(self, skel: Skeleton):
+        self.skel = skel
+        self.doc = skel.document
+        self.spec = mujoco.MjSpec()
+        self.result = BuildResult(self.spec)
+        self.drivers = self._coordinate_drivers()
+        self.ref = {name: float(np.asarray(d.fn(np.array([self._base_ref(d.base)])))[0])
+                    for name, d in self.drivers.items()}
+        self.coord_joint: dict[str, tuple[Joint, TransformAxis]] = self._choose_coordinate_axes()
+        self.bodies: dict[str, mujoco.MjsBody] = {"ground": self.spec.worldbody}
+        #: Exact attribute values by (MJCF tag, name): MuJoCo's XML writer prints 6 digits.
+        self.exact: dict[tuple[str, str], dict[str, np.ndarray | float]] = {}
+
+    # -- coordinates -------------------------------------------------------------------
+    def _base_ref(self, name: str) -> float:
+        return self.skel.coordinates[name].default
+
+    def _coordinate_drivers(self) -> dict[str, _Driver]:
+        """Each coordinate as a function of an independent coordinate (couplers resolved)."""
+        couplers = {c.dependent: c for c in self.skel.couplers}
+        drivers: dict[str, _Driver] = {}
+
+        def resolve(name: str, seen: tuple[str, ...]) -> _Driver:
+            if name in drivers:
+                return drivers[name]
+            if name in seen:
+                raise self.doc.error(couplers[name].element, "is part of a circular chain of couplers")
+            cp = couplers.get(name)
+            if cp is None:
+                d = _Driver(name, lambda x: np.asarray(x, dtype=float))
+            else:
+                d = resolve(cp.independent, seen + (name,)).then(cp.function)
+            drivers[name] = d
+            return d
+
+        for name in self.skel.coordinates:
+            resolve(name, ())
+        return drivers
+
+    def _choose_coordinate_axes(self) -> dict[str, tuple[Joint, TransformAxis]]:
+        chosen: dict[str, tuple[Joint, TransformAxis]] = {}
+        for joint in self.skel.joints:
+            for ax in joint.translations + joint.rotations:
+                c = ax.coordinate
+                if c is None or c in chosen or self.is_fixed(ax):
+                    continue
+                if self._is_identity(ax, *self._fit_range(c, ax.kind)):
+                    chosen[c] = (joint, ax)
+        for name, coord in self.skel.coordinates.items():
+            if name not in chosen and self.drivers[name].base == name and not coord.locked:
+                users = [j for j in self.skel.joints if any(a.coordinate == name for a in j.rotations + j.translations)]
+                if users:
+                    raise self.doc.error(coord.element, "drives no transform axis through the identity function, so "
+                                         "no MuJoCo joint can carry its value; o2m cannot convert this coordinate")
+        return chosen
+
+    def is_fixed(self, ax: TransformAxis) -> bool:
+        """True when the axis does not move: no coordinate, or it depends on a locked coordinate only."""
+        return ax.coordinate is None or self.skel.coordinates[self.drivers[ax.coordinate].base].locked
+
+    @staticmethod
+    def _is_identity(ax: TransformAxis, lo: float, hi: float) -> bool:
+        lin = _linear(ax.function, lo, hi)
+        return lin is not None and abs(lin[0] - 1.0) < 1e-12 and abs(lin[1]) < 1e-12
+
+    def _fit_range(self, name: str, kind: str) -> tuple[float, float]:
+        lo, hi = self.skel.coordinates[name].range
+        ulo, uhi = UNBOUNDED_FIT_RANGE[kind]
+        if hi - lo > 1e3:  # OpenSim writes ±99999.9 for "no range"
+            lo, hi = ulo, uhi
+        return float(lo), float(hi)
+
+    # -- the tree ----------------------------------------------------------------------
+    def _ordered_joints(self) -> list[Joint]:
+        by_child: dict[str, Joint] = {}
+        for j in self.skel.joints:
+            if j.child in by_child:
+                raise self.doc.error(j.element, f"makes body '{j.child}' the child of a second joint "
+                                                f"('{by_child[j.child].name}'); closed loops are not supported")
+            if j.child == "ground":
+                raise self.doc.error(j.element, "has ground as its child; reversed joints are not supported")
+            if j.child not in self.skel.bodies:
+                raise self.doc.error(j.element, f"connects a child frame on '{j.child}', which is not a body")
+            by_child[j.child] = j
+        for name, body in self.skel.bodies.items():
+            if name not in by_child:
+                raise self.doc.error(body.element, "is connected to the model by no joint")
+        order: list[Joint] = []
+        placed = {"ground"}
+        pending = list(self.skel.joints)
+        while pending:
+            ready = [j for j in pending if j.parent in placed]
+            if not ready:
+                j = pending[0]
+                raise self.doc.error(j.element, f"hangs from '{j.parent}', which is not connected to ground")
+            for j in ready:
+                order.append(j)
+                placed.add(j.child)
+                pending.remove(j)
+        return order
+
+    def build(self) -> BuildResult:
+        spec = self.spec
+        spec.modelname = self.skel.name
+        spec.compiler.degree = False
+        spec.compiler.autolimits = True
+        spec.option.timestep = 0.002
+        spec.option.gravity = OSIM_TO_MJ @ self.skel.gravity
+        for joint in self._ordered_joints():
+            self._add_joint(joint)
+        for c in self.skel.coordinates.values():
+            if c.locked:
+                self.result.notes.append(f"locked coordinate '{c.name}' folded into fixed transforms at {c.default:g}")
+        for marker in self.skel.markers:
+            body = self.bodies[marker.body]
+            pos = marker.position if marker.body != "ground" else OSIM_TO_MJ @ marker.position
+            body.add_site(name=marker.name, pos=pos, size=[0.005, 0, 0], rgba=[0.9, 0.2, 0.9, 1], group=4)
+            self.exact[("site", marker.name)] = {"pos": pos}
+        return self.result
+
+    def _axis_driver(self, ax: TransformAxis) -> _Driver:
+        return self.drivers[ax.coordinate].then(ax.function)
+
+    def _add_joint(self, joint: Joint) -> None:
+        q0 = {name: self.ref[name] for name in self.skel.coordinates}
+        r0 = [ax.value(q0) for ax in joint.rotations]
+        consts = [axis_angle_matrix(ax.axis, v) for ax, v in zip(joint.rotations, r0, strict=True)]
+        c_all = np.eye(3)
+        for c in consts:
+            c_all = c_all @ c
+        t0 = sum((ax.value(q0) * ax.axis for ax in joint.translations), np.zeros(3))
+        x_pb0 = joint.parent_frame @ Transform(pos=t0) @ Transform(rot=c_all) @ joint.child_frame.inverse()
+        x_world = Transform(OSIM_TO_MJ) @ x_pb0 if joint.parent == "ground" else x_pb0
+        body = self.bodies[joint.parent].add_body(name=joint.child, pos=x_world.pos, quat=matrix_to_quat(x_world.rot))
+        self.bodies[joint.child] = body
+        self.exact[("body", joint.child)] = {"pos": x_world.pos, "quat": matrix_to_quat(x_world.rot)}
+        self._set_inertial(body, joint)
+        moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
+        for ax, kind in moving:
+            if self.is_fixed(ax):
+                continue
+            if kind == "slide":
+                axis = x_pb0.rot.T @ joint.parent_frame.rot @ ax.axis
+                pos = np.zeros(3)
+                ref = ax.value(q0)
+            else:
+                i = joint.rotations.index(ax)
+                after = np.eye(3)
+                for c in consts[i + 1:]:
+                    after = after @ c
+                axis = joint.child_frame.rot @ (after.T @ ax.axis)
+                pos = joint.child_frame.pos
+                ref = r0[i]
+            self._add_mj_joint(body, joint, ax, kind, axis, pos, ref)
+
+    def _set_inertial(self, body: mujoco.MjsBody, joint: Joint) -> None:
+        b = self.skel.bodies[joint.child]
+        mass, inertia = b.mass, b.inertia.copy()
+        if mass == 0.0:  # OpenSim ignores the inertia of a massless body
+            inertia[:] = 0.0
+        moving = not all(self.is_fixed(ax) for ax in joint.rotations + joint.translations)
+        if moving and mass < MIN_MASS:
+            self.result.approximations.append(Approximation(
+                "Body", b.name, f"massless moving body given {MIN_MASS:g} kg (MuJoCo needs mass)", MIN_MASS, "kg"))
+            mass = MIN_MASS
+        eig = np.linalg.eigvalsh(inertia)
+        if eig.min() < MIN_INERTIA:  # MuJoCo needs positive inertia, also on welded bodies
+            inertia = inertia + np.eye(3) * (MIN_INERTIA - min(0.0, eig.min()))
+            self.result.approximations.append(Approximation(
+                "Body", b.name, f"inertia raised by {MIN_INERTIA:g} kg m² (MuJoCo needs positive inertia)",
+                MIN_INERTIA, "kg m^2"))
+        inertia = self._physical_inertia(b.name, inertia)
+        body.explicitinertial = True
+        body.mass = mass
+        body.ipos = b.com
+        body.fullinertia = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+        self.exact[("inertial", b.name)] = {"pos": b.com, "mass": mass, "fullinertia": np.array(body.fullinertia)}
+
+    def _physical_inertia(self, name: str, inertia: np.ndarray) -> np.ndarray:
+        """``inertia`` (3, 3), with its largest principal moment lowered to the sum of the other two
+        when it breaks the triangle inequality A + B >= C, which MuJoCo enforces."""
+        eig, vec = np.linalg.eigh(inertia)
+        if eig[0] + eig[1] >= eig[2] * (1 - 1e-12):
+            return inertia
+        fixed = eig.copy()
+        fixed[2] = (eig[0] + eig[1]) * (1 - 1e-5)  # inside by more than the MJCF's printed precision
+        self.result.approximations.append(Approximation(
+            "Body", name, "largest principal inertia lowered to the sum of the other two (A + B >= C)",
+            float(eig[2] - fixed[2]), "kg m^2", f"from {eig[2]:.4g} to {fixed[2]:.4g}"))
+        return vec @ np.diag(fixed) @ vec.T
+
+    def _add_mj_joint(self, body: mujoco.MjsBody, joint: Joint, ax: TransformAxis, kind: str,
+                      axis: np.ndarray, pos: np.ndarray, ref: float) -> None:
+        coord = self.skel.coordinates[ax.coordinate]
+        is_coord = self.coord_joint.get(ax.coordinate, (None, None))[1] is ax
+        name = coord.name if is_coord else f"{joint.name}_{ax.name}"
+        if any(r.name == name for r in self.result.joints):
+            raise self.doc.error(ax.element, f"would make a second MuJoCo joint named '{name}'")
+        jtype = mujoco.mjtJoint.mjJNT_SLIDE if kind == "slide" else mujoco.mjtJoint.mjJNT_HINGE
+        mj = body.add_joint(name=name, type=jtype,
+                            axis=axis / np.linalg.norm(axis), pos=pos, ref=ref)
+        rec = JointRecord(name, kind, joint.name, ax.name, coord.name if is_coord else None, None, "coordinate")
+        self.exact[("joint", name)] = {"axis": axis / np.linalg.norm(axis), "pos": pos, "ref": ref}
+        if is_coord:
+            mj.range = list(coord.range)
+            clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
+            mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE
+            if self.drivers[coord.name].base != coord.name:
+                self._couple(rec, self.drivers[coord.name], ref, coord, ax)
+        else:
+            self._couple(rec, self._axis_driver(ax), ref, coord, ax)
+        self.result.joints.append(rec)
+
+    def _couple(self, rec: JointRecord, driver: _Driver, ref: float, coord: Coordinate, ax: TransformAxis) -> None:
+        """Drive MuJoCo joint ``rec`` (value = driver.fn(base)) from the base coordinate's joint."""
+        base = driver.base
+        if base not in self.coord_joint:
+            raise self.doc.error(ax.element, f"depends on coordinate '{base}', which has no MuJoCo joint")
+        base_ref = self.ref[base]
+        base_kind = self.coord_joint[base][1].kind
+        lo, hi = self._fit_range(base, base_kind)
+        lo, hi = min(lo, base_ref), max(hi, base_ref)
+        rel = lambda x: np.asarray(driver.fn(np.asarray(x, dtype=float)), dtype=float) - ref  # noqa: E731
+        lin = _linear(rel, lo, hi)
+        if lin is not None:
+            slope, icpt = lin
+            coef = np.array([icpt + slope * base_ref, slope, 0.0, 0.0, 0.0])
+            rec.relation = "linear"
+        else:
+            fit = fit_polynomial(rel, lo, hi, base_ref, degree=4)
+            coef = np.asarray(fit.coef, dtype=float)
+            rec.relation = "quartic fit"
+            src = coord.element if rec.coordinate else ax.element
+            units = "rad" if rec.kind == "hinge" else "m"
+            self.result.approximations.append(Approximation(
+                src.tag, src.get("name", rec.name),
+                f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]",
+                float(fit.max_error), units, f"rms {fit.rms_error:.3g} {units}", joint=rec.name))
+        rec.driven_by = base
+        self._equality(rec.name, base, coef, f"{rec.name}_from_{base}")
+
+    def _equality(self, joint1: str, joint2: str | None, coef: np.ndarray, name: str) -> None:
+        eq = self.spec.add_equality(name=name, type=mujoco.mjtEq.mjEQ_JOINT, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                                    name1=joint1, name2=joint2 or "")
+        data = np.zeros(eq.data.shape)
+        data[:5] = coef
+        eq.data = data
+        self.exact[("joint", name)] = {"polycoef": np.asarray(coef, dtype=float)}
+
+    def restore_precision(self, xml: str) -> str:
+        """MJCF text with every number o2m computed written in full (17 significant digits).
+
+        MuJoCo's writer prints about 6 digits, which alone would put 1e-6 m errors into the
+        skeleton and can break the inertia triangle inequality of a borderline body.
+        """
+        root = etree.fromstring(xml.encode())
+        for el in root.iter("body", "joint", "site"):
+            name = el.get("name")
+            tag = el.tag if el.getparent().tag != "equality" else "joint"
+            vals = self.exact.get((tag, name))
+            if vals is None:
+                continue
+            for attr, v in vals.items():
+                el.set(attr, _num(v))
+            if el.tag == "body" and ("inertial", name) in self.exact:
+                inertial = el.find("inertial")
+                if inertial is not None:
+                    for attr in ("quat", "diaginertia", "fullinertia"):
+                        inertial.attrib.pop(attr, None)
+                    for attr, v in self.exact[("inertial", name)].items():
+                        inertial.set(attr, _num(v))
+        return etree.tostring(root, encoding="unicode", pretty_print=True)
+
+
+def _num(v) -> str:
+    return " ".join(f"{float(x):.17g}" for x in np.atleast_1d(np.asarray(v, dtype=float)))
+
+
+def build_spec(skel: Skeleton) -> BuildResult:
+    """The MuJoCo spec of ``skel`` (bodies, joints, equalities, markers; no geometry)."""
+    return MjcfBuilder(skel).build()
+
+
+def add_geometry(result: BuildResult, skel: Skeleton, bodies: dict[str, mujoco.MjsBody], mesh_dir: Path,
+                 search_dirs: list[Path]) -> list[Skipped]:
+    """Add the skeleton's attached geometry as visual geoms; meshes are written to ``mesh_dir`` as STL.
+
+    Returns what was left out (missing mesh files, decorations without a MuJoCo twin).
+    """
+    spec = result.spec
+    skipped: list[Skipped] = []
+    meshes: dict[tuple[str, tuple[float, ...]], str] = {}
+    used_names: set[str] = set()
+    mesh_dir.mkdir(parents=True, exist_ok=True)
+
+    def unique(name: str) -> str:
+        out, k = name, 1
+        while out in used_names:
+            out, k = f"{name}_{k}", k + 1
+        used_names.add(out)
+        return out
+
+    for g in skel.geometry:
+        el = g.element
+        body = bodies[g.body]
+        to_world = Transform(OSIM_TO_MJ) if g.body == "ground" else Transform()
+        if el.tag == "Mesh":
+            fname = (el.findtext("mesh_file") or "").strip()
+            scale = tuple(float(v) for v in (el.findtext("scale_factors") or "1 1 1").split())
+            src = geometry.find_geometry_file(fname, search_dirs) if fname else None
+            if src is None:
+                skipped.append(Skipped("Mesh", el.get("name", fname), f"mesh file '{fname}' not found in "
+                                       f"{', '.join(str(d) for d in search_dirs)}"))
+                continue
+            key = (str(src), scale)
+            if key not in meshes:
+                asset = unique(Path(fname).stem)
+                stl = mesh_dir / f"{asset}.stl"
+                try:
+                    geometry.write_stl(stl, geometry.read_mesh(src), scale=scale)
+                except ValueError as exc:  # a mesh with no surface (lines only)
+                    used_names.discard(asset)
+                    skipped.append(Skipped("Mesh", el.get("name", fname), f"mesh file '{fname}' has no surface: {exc}"))
+                    continue
+                spec.add_mesh(name=asset, file=f"{mesh_dir.name}/{stl.name}",
+                              inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL)
+                meshes[key] = asset
+            x = to_world @ g.frame
+            body.add_geom(name=unique(el.get("name") or meshes[key]), type=mujoco.mjtGeom.mjGEOM_MESH,
+                          meshname=meshes[key], pos=x.pos, quat=matrix_to_quat(x.rot),
+                          contype=0, conaffinity=0, group=1, density=0,
+                          rgba=_rgba(el))
+            continue
+        why: list[str] = []
+        prim = geometry.analytic_geom(el, why)
+        if prim is None:
+            skipped.append(Skipped(el.tag, el.get("name", ""), "; ".join(why) or "no MuJoCo twin"))
+            continue
+        x = to_world @ g.frame @ Transform(quat_to_matrix(prim.quat), prim.pos)
+        gtype = getattr(mujoco.mjtGeom, f"mjGEOM_{prim.type.upper()}")
+        body.add_geom(name=unique(el.get("name") or el.tag.lower()), type=gtype,
+                      size=prim.size, pos=x.pos, quat=matrix_to_quat(x.rot), contype=0, conaffinity=0, group=1,
+                      density=0, rgba=prim.rgba if prim.rgba is not None else [0.8, 0.8, 0.8, 1])
+    return skipped
+
+
+def _rgba(el) -> list[float]:
+    app = el.find("Appearance")
+    rgba = [0.89, 0.85, 0.79, 1.0]  # bone
+    if app is not None:
+        col = app.findtext("color")
+        if col:
+            rgba[:3] = [float(v) for v in col.split()[:3]]
+        op = app.findtext("opacity")
+        if op:
+            rgba[3] = float(op)
+        vis = app.findtext("visible")
+        if vis is not None and vis.strip().lower() == "false":
+            rgba[3] = 0.0
+    return rgba
