@@ -1166,11 +1166,13 @@ def _grid(fn: Function, lo: float, hi: float, n: int) -> FloatArray:
 
 
 def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 4,
-                   n: int = 2001) -> PolynomialFit:
+                   n: int = 2001, exact_at_x0: bool = False) -> PolynomialFit:
     """Minimax polynomial of ``degree`` in (x - x0) approximating fn on [lo, hi].
 
     Fits on n uniform points (plus fn's knots inside): least squares first, then the minimax
     (Chebyshev) fit by linear programming; keeps whichever has the smaller maximum error.
+    ``exact_at_x0`` fixes the constant term to fn(x0), so the fit is exact at x0 (a MuJoCo
+    joint equality then holds exactly at the model's reference pose).
     """
     from scipy.optimize import linprog
 
@@ -1187,6 +1189,10 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
     s = max(abs(lo - x0), abs(hi - x0), 1e-300)
     V = np.vander((xs - x0) / s, degree + 1, increasing=True)
     unscale = s ** -np.arange(degree + 1, dtype=np.float64)
+    f0 = float(np.asarray(fn(np.array([x0])), dtype=np.float64)[0]) if exact_at_x0 else 0.0
+    if exact_at_x0:  # fit fn - fn(x0) without a constant term
+        V, f, unscale = V[:, 1:], f - f0, unscale[1:]
+    head = np.array([f0]) if exact_at_x0 else np.zeros(0)
 
     check = _grid(fn, lo, hi, 8 * (n - 1) + 1)
     fc = np.asarray(fn(check), dtype=np.float64)
@@ -1196,7 +1202,7 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
         return float(np.max(np.abs(e))), float(np.sqrt(np.mean(e * e)))
 
     a_ls = np.linalg.lstsq(V, f, rcond=None)[0]
-    best = a_ls * unscale
+    best = np.concatenate([head, a_ls * unscale])
     best_err = errors(best)
 
     fscale = max(float(np.max(np.abs(f))), 1e-300)
@@ -1206,14 +1212,14 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
         ones = np.ones((m, 1))
         A_ub = np.block([[V, -ones], [-V, -ones]])
         b_ub = np.concatenate([f, -f]) / fscale
-        cost = np.zeros(degree + 2)
+        cost = np.zeros(V.shape[1] + 1)
         cost[-1] = 1.0
         try:
-            res = linprog(cost, A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * (degree + 1) + [(0, None)],
+            res = linprog(cost, A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * V.shape[1] + [(0, None)],
                           method="highs", options={"primal_feasibility_tolerance": 1e-10,
                                                    "dual_feasibility_tolerance": 1e-10})
             if res.status == 0:
-                cand = res.x[:-1] * fscale * unscale
+                cand = np.concatenate([head, res.x[:-1] * fscale * unscale])
                 err = errors(cand)
                 if err[0] < best_err[0]:
                     best, best_err = cand, err

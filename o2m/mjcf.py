@@ -337,7 +337,7 @@ class MjcfBuilder:
             coef = np.array([icpt + slope * base_ref, slope, 0.0, 0.0, 0.0])
             rec.relation = "linear"
         else:
-            fit = fit_polynomial(rel, lo, hi, base_ref, degree=4)
+            fit = fit_polynomial(rel, lo, hi, base_ref, degree=4, exact_at_x0=True)
             coef = np.asarray(fit.coef, dtype=float)
             rec.relation = "quartic fit"
             src = coord.element if rec.coordinate else ax.element

@@ -100,3 +100,13 @@ def test_report_lists_every_element(converted):
     assert rep.counts["mujoco joints"] == m.njnt
     assert m.key("default-pose").qpos.tolist() == m.qpos0.tolist()
     assert all(np.isfinite(a.max_error) for a in rep.approximations)
+
+
+def test_default_pose_satisfies_every_equality(converted):
+    """At qpos0 (OpenSim's default pose) no equality is violated, so a simulation starts at rest."""
+    name, osim, conv = converted
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    eq_rows = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    assert np.all(np.abs(d.efc_pos[: d.nefc][eq_rows]) < 1e-12)

@@ -471,3 +471,16 @@ def test_error_inside_multiplier_names_inner_element():
     with pytest.raises(UnsupportedElementError) as info:
         _parse_doc(doc)
     assert (info.value.element, info.value.name, info.value.line) == ("SimmSpline", "inner", 3)
+
+
+def test_fit_polynomial_exact_at_x0_keeps_the_reference_point():
+    """A fit pinned at x0 is exact there and still close elsewhere (never better than the free fit)."""
+    x = np.array([-2.0, -1.2, -0.5, 0.0, 0.3, 0.9, 1.5])
+    y = np.array([0.004, -0.002, 0.003, 0.0, -0.001, 0.0025, -0.003])
+    spline = SimmSpline(x, y)
+    free = fit_polynomial(spline, -2.0, 1.5, 0.3)
+    pinned = fit_polynomial(spline, -2.0, 1.5, 0.3, exact_at_x0=True)
+    assert pinned.coef[0] == pytest.approx(float(spline(0.3)), abs=1e-15)
+    assert pinned(np.array([0.3]))[0] == pytest.approx(float(spline(0.3)), abs=1e-15)
+    assert pinned.max_error >= free.max_error - 1e-15
+    assert pinned.max_error < 0.01
