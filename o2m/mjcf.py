@@ -312,6 +312,8 @@ class MjcfBuilder:
         rec = JointRecord(name, kind, joint.name, ax.name, coord.name if is_coord else None, None, "coordinate")
         self.exact[("joint", name)] = {"axis": axis / np.linalg.norm(axis), "pos": pos, "ref": ref}
         if is_coord:
+            self.exact[("joint", name)]["range"] = np.array(coord.range)
+        if is_coord:
             mj.range = list(coord.range)
             clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
             mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE

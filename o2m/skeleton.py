@@ -22,6 +22,7 @@ import numpy as np
 from lxml import etree
 
 from .document import OsimDocument
+from .errors import UnsupportedElementError
 from .functions import Function, parse_function
 from .transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
@@ -265,14 +266,15 @@ class SkeletonReader:
 
     def coordinate(self, el: etree._Element, joint: str) -> Coordinate:
         rng = el.find("range")
-        lo, hi = _floats(rng, 2, self.doc, "range") if rng is not None else (-np.pi, np.pi)
+        # OpenSim 4.x omits properties at their default: range [-10, 10], not clamped, not locked.
+        lo, hi = _floats(rng, 2, self.doc, "range") if rng is not None else (-10.0, 10.0)
         if lo > hi:
             raise self.doc.error(el, f"has range [{lo}, {hi}] with minimum above maximum")
         dv = el.find("default_value")
         default = float(_floats(dv, 1, self.doc, "default_value")[0]) if dv is not None else 0.0
         return Coordinate(
             name=el.get("name"), joint=joint, default=default, range=(float(lo), float(hi)),
-            clamped=_bool(el.find("clamped"), True), locked=_bool(el.find("locked")),
+            clamped=_bool(el.find("clamped"), False), locked=_bool(el.find("locked")),
             prescribed=_bool(el.find("prescribed")) and el.find("prescribed_function") is not None
             and len(el.find("prescribed_function")) > 0,
             element=el,
@@ -282,13 +284,21 @@ class SkeletonReader:
         """The function element inside ``holder`` (first child element that is a function)."""
         for child in holder:
             if isinstance(child.tag, str) and child.tag[:1].isupper():
-                return parse_function(child)
+                try:
+                    return parse_function(child)
+                except UnsupportedElementError as exc:
+                    owner = self.doc.owner_of(holder)
+                    where = f" (in {owner.tag} '{owner.get('name')}')" if owner is not self.model else ""
+                    bad = child if exc.element == child.tag else next(
+                        (e for e in child.iter(exc.element or child.tag)), child)
+                    msg = str(exc).split("> ", 1)[-1]
+                    raise self.doc.error(bad, f"{msg}{where}") from None
         raise self.doc.error(holder, "holds no function")
 
     def joint(self, el: etree._Element, coords: dict[str, Coordinate]) -> Joint:
         self.check_known(el)
         if el.tag not in SUPPORTED_JOINTS:
-            raise self.doc.error(el, f"is a {el.tag}, which o2m cannot convert (supported: "
+            raise self.doc.error(el, f"is a joint type o2m cannot convert (supported: "
                                      f"{', '.join(sorted(SUPPORTED_JOINTS))})")
         if _bool(el.find("reverse")):
             raise self.doc.error(el, "is a reversed joint, which o2m does not convert")
