@@ -29,7 +29,7 @@ coordinate's unit (rad or m); derivatives are value units per x unit.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -304,6 +304,33 @@ def _opensim_interval(xk: FloatArray, t: FloatArray) -> NDArray[np.intp]:
         todo &= ~done
     return np.minimum(k, max(n - 2, 0))
 
+def _eval_linear_ends(x: ArrayLike, xk: FloatArray, yk: FloatArray, b: FloatArray, deriv: bool,
+                      inner: Callable[[FloatArray], FloatArray]) -> FloatArray:
+    """Evaluate a spline as OpenSim does: linear with the end slopes ``b`` outside [xk[0], xk[-1]],
+    the end values exactly at (within round-off of) the end knots, and ``inner`` in between."""
+    t = _as_array(x)
+    shape = t.shape
+    t = t.ravel()
+    n = xk.size
+    out = np.full(t.shape, np.nan)
+    left = t < xk[0]
+    right = ~left & (t > xk[-1])
+    at0 = ~left & ~right & (np.abs(t - xk[0]) <= _ROUNDOFF_ERROR)
+    at1 = ~left & ~right & ~at0 & (np.abs(t - xk[-1]) <= _ROUNDOFF_ERROR)
+    mid = ~left & ~right & ~at0 & ~at1 & ~np.isnan(t)
+    if deriv:
+        out[left | at0] = b[0]
+        out[right | at1] = b[n - 1]
+    else:
+        out[left] = yk[0] + (t[left] - xk[0]) * b[0]
+        out[right] = yk[n - 1] + (t[right] - xk[n - 1]) * b[n - 1]
+        out[at0] = yk[0]
+        out[at1] = yk[n - 1]
+    if mid.any():
+        out[mid] = inner(t[mid])
+    return out.reshape(shape)
+
+
 
 @dataclass(frozen=True, eq=False)
 class SimmSpline(Function):
@@ -330,34 +357,16 @@ class SimmSpline(Function):
         return self.x
 
     def _eval(self, x: ArrayLike, deriv: bool) -> FloatArray:
-        t = _as_array(x)
-        shape = t.shape
-        t = t.ravel()
         xk, yk, b, c, d = self.x, self.y, self.b, self.c, self.d
-        n = xk.size
-        out = np.full(t.shape, np.nan)
-        left = t < xk[0]
-        right = ~left & (t > xk[-1])
-        at0 = ~left & ~right & (np.abs(t - xk[0]) <= _ROUNDOFF_ERROR)
-        at1 = ~left & ~right & ~at0 & (np.abs(t - xk[-1]) <= _ROUNDOFF_ERROR)
-        inner = ~left & ~right & ~at0 & ~at1 & ~np.isnan(t)
-        if deriv:
-            out[left | at0] = b[0]
-            out[right | at1] = b[n - 1]
-        else:
-            out[left] = yk[0] + (t[left] - xk[0]) * b[0]
-            out[right] = yk[n - 1] + (t[right] - xk[n - 1]) * b[n - 1]
-            out[at0] = yk[0]
-            out[at1] = yk[n - 1]
-        if inner.any():
-            ti = t[inner]
-            k = np.zeros(ti.shape, dtype=np.intp) if n < 3 else _opensim_interval(xk, ti)
+
+        def inner(ti: FloatArray) -> FloatArray:
+            k = np.zeros(ti.shape, dtype=np.intp) if xk.size < 3 else _opensim_interval(xk, ti)
             dx = ti - xk[k]
             if deriv:
-                out[inner] = b[k] + dx * (2.0 * c[k] + 3.0 * dx * d[k])
-            else:
-                out[inner] = yk[k] + dx * (b[k] + dx * (c[k] + dx * d[k]))
-        return out.reshape(shape)
+                return b[k] + dx * (2.0 * c[k] + 3.0 * dx * d[k])
+            return yk[k] + dx * (b[k] + dx * (c[k] + dx * d[k]))
+
+        return _eval_linear_ends(x, xk, yk, b, deriv, inner)
 
     def __call__(self, x: ArrayLike) -> FloatArray:
         return self._eval(x, False)
@@ -445,30 +454,13 @@ class PiecewiseLinearFunction(Function):
         return self.x
 
     def _eval(self, x: ArrayLike, deriv: bool) -> FloatArray:
-        t = _as_array(x)
-        shape = t.shape
-        t = t.ravel()
         xk, yk, b = self.x, self.y, self.b
-        n = xk.size
-        out = np.full(t.shape, np.nan)
-        left = t < xk[0]
-        right = ~left & (t > xk[-1])
-        at0 = ~left & ~right & (np.abs(t - xk[0]) <= _ROUNDOFF_ERROR)
-        at1 = ~left & ~right & ~at0 & (np.abs(t - xk[-1]) <= _ROUNDOFF_ERROR)
-        inner = ~left & ~right & ~at0 & ~at1 & ~np.isnan(t)
-        if deriv:
-            out[left | at0] = b[0]
-            out[right | at1] = b[n - 1]
-        else:
-            out[left] = yk[0] + (t[left] - xk[0]) * b[0]
-            out[right] = yk[n - 1] + (t[right] - xk[n - 1]) * b[n - 1]
-            out[at0] = yk[0]
-            out[at1] = yk[n - 1]
-        if inner.any():
-            ti = t[inner]
+
+        def inner(ti: FloatArray) -> FloatArray:
             k = _opensim_interval(xk, ti)
-            out[inner] = b[k] if deriv else yk[k] + (ti - xk[k]) * b[k]
-        return out.reshape(shape)
+            return b[k] if deriv else yk[k] + (ti - xk[k]) * b[k]
+
+        return _eval_linear_ends(x, xk, yk, b, deriv, inner)
 
     def __call__(self, x: ArrayLike) -> FloatArray:
         return self._eval(x, False)
