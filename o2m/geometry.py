@@ -279,26 +279,28 @@ class _VtpReader:
         return conn, starts, offs
 
 
+def _triangles_per_cell(starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For cells of n points making n - 2 triangles each: (cell index, triangle index in its cell)."""
+    ntri = np.maximum(ends - starts - 2, 0)
+    cell = np.repeat(np.arange(len(starts)), ntri)
+    j = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+    return cell, j
+
+
 def _fan(conn: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Fan-triangulate polygons conn[starts[i]:ends[i]]; returns (m, 3) indices."""
-    ntri = np.maximum(ends - starts - 2, 0)
-    total = int(ntri.sum())
-    if total == 0:
+    cell, j = _triangles_per_cell(starts, ends)
+    if cell.size == 0:
         return np.zeros((0, 3), np.int64)
-    cell = np.repeat(np.arange(len(starts)), ntri)
-    k = np.arange(total) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
     s = starts[cell]
-    return np.stack([conn[s], conn[s + k], conn[s + k + 1]], axis=1)
+    return np.stack([conn[s], conn[s + j + 1], conn[s + j + 2]], axis=1)
 
 
 def _strips(conn: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Triangulate strips with VTK's alternating winding; returns (m, 3) indices."""
-    ntri = np.maximum(ends - starts - 2, 0)
-    total = int(ntri.sum())
-    if total == 0:
+    cell, j = _triangles_per_cell(starts, ends)
+    if cell.size == 0:
         return np.zeros((0, 3), np.int64)
-    cell = np.repeat(np.arange(len(starts)), ntri)
-    j = np.arange(total) - np.repeat(np.cumsum(ntri) - ntri, ntri)
     i0 = starts[cell] + j
     odd = (j % 2).astype(bool)
     a = np.where(odd, conn[i0 + 1], conn[i0])
