@@ -357,7 +357,7 @@ class MjcfBuilder:
         data = np.zeros(eq.data.shape)
         data[:5] = coef
         eq.data = data
-        self.exact[("joint", name)] = {"polycoef": np.asarray(coef, dtype=float)}
+        self.exact[("equality", name)] = {"polycoef": np.asarray(coef, dtype=float)}
 
     def restore_precision(self, xml: str) -> str:
         """MJCF text with every number o2m computed written in full (17 significant digits).
@@ -368,7 +368,7 @@ class MjcfBuilder:
         root = etree.fromstring(xml.encode())
         for el in root.iter("body", "joint", "site"):
             name = el.get("name")
-            tag = el.tag if el.getparent().tag != "equality" else "joint"
+            tag = "equality" if el.getparent().tag == "equality" else el.tag
             vals = self.exact.get((tag, name))
             if vals is None:
                 continue
@@ -386,11 +386,6 @@ class MjcfBuilder:
 
 def _num(v) -> str:
     return " ".join(f"{float(x):.17g}" for x in np.atleast_1d(np.asarray(v, dtype=float)))
-
-
-def build_spec(skel: Skeleton) -> BuildResult:
-    """The MuJoCo spec of ``skel`` (bodies, joints, equalities, markers; no geometry)."""
-    return MjcfBuilder(skel).build()
 
 
 def add_geometry(result: BuildResult, skel: Skeleton, bodies: dict[str, mujoco.MjsBody], mesh_dir: Path,
