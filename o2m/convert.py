@@ -21,7 +21,9 @@ from lxml import etree
 from .document import load_document
 from .errors import O2MError
 from .mjcf import Approximation, JointRecord, MjcfBuilder, add_geometry
-from .skeleton import Skipped, read_skeleton
+from .paths import read_paths, read_wrap_objects
+from .skeleton import SkeletonReader, Skipped, read_skeleton
+from .tendons import add_paths, tendon_length_ranges
 
 MESH_FOLDER = "meshes"
 
@@ -108,6 +110,8 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     skel = read_skeleton(doc)
     builder = MjcfBuilder(skel)
     result = builder.build()
+    reader = SkeletonReader(doc)
+    add_paths(builder, read_paths(reader, builder.ref), read_wrap_objects(reader))
     search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs or []]
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".o2m-", dir=out_dir.parent) as tmp:
@@ -115,10 +119,12 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
         geom_skipped = add_geometry(result, skel, builder.bodies, stage / MESH_FOLDER, search)
         spec = result.spec
         spec.meshdir = str(stage)
+        spec.compiler.LRopt.mode = mujoco.mjtLRMode.mjLRMODE_NONE  # o2m sets the length ranges itself
         try:
             model = spec.compile()
         except Exception as exc:
             raise O2MError(f"{osim}: MuJoCo could not compile the converted model: {exc}") from exc
+        _set_length_ranges(spec, model, builder)
         spec.add_key(name="default-pose", qpos=model.qpos0.copy())
         spec.compile()
         xml_path = stage / f"{stem}.xml"
@@ -141,6 +147,25 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
         report.write(stage, stem)
         _publish(stage, out_dir, stem)
     return Conversion(out_dir / f"{stem}.xml", report)
+
+
+def _set_length_ranges(spec: mujoco.MjSpec, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
+    """Give every tendon actuator the length range of its tendon over the coordinates' ranges."""
+    if model.nu == 0:
+        return
+    coords = {}
+    for name, (_, ax) in builder.coord_joint.items():
+        if builder.drivers[name].base == name:
+            coords[name] = builder.fit_range(name, ax.kind)
+    ranges = tendon_length_ranges(model, coords)
+    for act in spec.actuators:
+        if act.trntype == mujoco.mjtTrn.mjTRN_TENDON:
+            lo, hi = ranges[model.tendon(act.target).id]
+            if hi - lo < 1e-4 * max(lo, 1e-3):  # spans no free coordinate (e.g. only locked ones)
+                builder.result.notes.append(f"{act.name}: tendon length constant at {lo:.6g} m over the free "
+                                            f"coordinates; length range set to ±1% around it")
+                lo, hi = 0.99 * lo, 1.01 * hi
+            act.lengthrange = [lo, hi]
 
 
 def _relative_meshdir(xml: str) -> str:

@@ -34,7 +34,7 @@ from lxml import etree
 
 from . import geometry
 from .functions import fit_polynomial
-from .skeleton import Coordinate, Joint, Skeleton, Skipped, TransformAxis
+from .skeleton import Joint, Skeleton, Skipped, TransformAxis
 from .transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat, quat_to_matrix
 
 #: Mass (kg) and principal inertia (kg m²) given to massless moving bodies, which MuJoCo rejects.
@@ -118,6 +118,9 @@ class MjcfBuilder:
                     for name, d in self.drivers.items()}
         self.coord_joint: dict[str, tuple[Joint, TransformAxis]] = self._choose_coordinate_axes()
         self.bodies: dict[str, mujoco.MjsBody] = {"ground": self.spec.worldbody}
+        self._order: list[Joint] | None = None
+        #: Each body's frame in OpenSim ground at the reference pose.
+        self.ground_frames: dict[str, Transform] = {"ground": Transform()}
         #: Exact attribute values by (MJCF tag, name): MuJoCo's XML writer prints 6 digits.
         self.exact: dict[tuple[str, str], dict[str, np.ndarray | float]] = {}
 
@@ -154,7 +157,7 @@ class MjcfBuilder:
                 c = ax.coordinate
                 if c is None or c in chosen or self.is_fixed(ax):
                     continue
-                if self._is_identity(ax, *self._fit_range(c, ax.kind)):
+                if self._is_identity(ax, *self.fit_range(c, ax.kind)):
                     chosen[c] = (joint, ax)
         for name, coord in self.skel.coordinates.items():
             if name not in chosen and self.drivers[name].base == name and not coord.locked:
@@ -163,6 +166,22 @@ class MjcfBuilder:
                     raise self.doc.error(coord.element, "drives no transform axis through the identity function, so "
                                          "no MuJoCo joint can carry its value; o2m cannot convert this coordinate")
         return chosen
+
+    def coordinate_values(self, changes: dict[str, float] | None = None) -> dict[str, float]:
+        """Every coordinate's value with independent coordinates at the reference pose except
+        ``changes``; dependent coordinates follow their couplers."""
+        base = {name: self.ref[name] for name, d in self.drivers.items() if d.base == name}
+        base.update(changes or {})
+        return {name: float(np.asarray(d.fn(np.array([base[d.base]])))[0]) for name, d in self.drivers.items()}
+
+    def ground_frames_at(self, values: dict[str, float]) -> dict[str, Transform]:
+        """Each body's frame in OpenSim ground when the coordinates have ``values`` (all of them)."""
+        frames = {"ground": Transform()}
+        if self._order is None:
+            self._order = self._ordered_joints()
+        for joint in self._order:
+            frames[joint.child] = frames[joint.parent] @ joint.transform(values)
+        return frames
 
     def is_fixed(self, ax: TransformAxis) -> bool:
         """True when the axis does not move: no coordinate, or it depends on a locked coordinate only."""
@@ -173,7 +192,7 @@ class MjcfBuilder:
         lin = _linear(ax.function, lo, hi)
         return lin is not None and abs(lin[0] - 1.0) < 1e-12 and abs(lin[1]) < 1e-12
 
-    def _fit_range(self, name: str, kind: str) -> tuple[float, float]:
+    def fit_range(self, name: str, kind: str) -> tuple[float, float]:
         lo, hi = self.skel.coordinates[name].range
         ulo, uhi = UNBOUNDED_FIT_RANGE[kind]
         if hi - lo > 1e3:  # OpenSim writes ±99999.9 for "no range"
@@ -243,6 +262,7 @@ class MjcfBuilder:
         x_world = Transform(OSIM_TO_MJ) @ x_pb0 if joint.parent == "ground" else x_pb0
         body = self.bodies[joint.parent].add_body(name=joint.child, pos=x_world.pos, quat=matrix_to_quat(x_world.rot))
         self.bodies[joint.child] = body
+        self.ground_frames[joint.child] = self.ground_frames[joint.parent] @ x_pb0
         self.exact[("body", joint.child)] = {"pos": x_world.pos, "quat": matrix_to_quat(x_world.rot)}
         self._set_inertial(body, joint)
         moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
@@ -318,19 +338,22 @@ class MjcfBuilder:
             clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
             mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE
             if self.drivers[coord.name].base != coord.name:
-                self._couple(rec, self.drivers[coord.name], ref, coord, ax)
+                self.couple(rec, self.drivers[coord.name], ref, coord.element)
         else:
-            self._couple(rec, self._axis_driver(ax), ref, coord, ax)
+            self.couple(rec, self._axis_driver(ax), ref, ax.element)
         self.result.joints.append(rec)
 
-    def _couple(self, rec: JointRecord, driver: _Driver, ref: float, coord: Coordinate, ax: TransformAxis) -> None:
-        """Drive MuJoCo joint ``rec`` (value = driver.fn(base)) from the base coordinate's joint."""
+    def couple(self, rec: JointRecord, driver: _Driver, ref: float, source: etree._Element) -> None:
+        """Drive MuJoCo joint ``rec`` (value = driver.fn(base)) from the base coordinate's joint.
+
+        ``ref`` is the joint's reference value; ``source`` is the OpenSim element the coupling
+        comes from (named in errors and in the approximation it records)."""
         base = driver.base
         if base not in self.coord_joint:
-            raise self.doc.error(ax.element, f"depends on coordinate '{base}', which has no MuJoCo joint")
+            raise self.doc.error(source, f"depends on coordinate '{base}', which has no MuJoCo joint")
         base_ref = self.ref[base]
         base_kind = self.coord_joint[base][1].kind
-        lo, hi = self._fit_range(base, base_kind)
+        lo, hi = self.fit_range(base, base_kind)
         lo, hi = min(lo, base_ref), max(hi, base_ref)
         rel = lambda x: np.asarray(driver.fn(np.asarray(x, dtype=float)), dtype=float) - ref  # noqa: E731
         lin = _linear(rel, lo, hi)
@@ -342,10 +365,9 @@ class MjcfBuilder:
             fit = fit_polynomial(rel, lo, hi, base_ref, degree=4, exact_at_x0=True)
             coef = np.asarray(fit.coef, dtype=float)
             rec.relation = "quartic fit"
-            src = coord.element if rec.coordinate else ax.element
             units = "rad" if rec.kind == "hinge" else "m"
             self.result.approximations.append(Approximation(
-                src.tag, src.get("name", rec.name),
+                source.tag, source.get("name", rec.name),
                 f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]",
                 float(fit.max_error), units, f"rms {fit.rms_error:.3g} {units}", joint=rec.name))
         rec.driven_by = base
@@ -376,11 +398,13 @@ class MjcfBuilder:
                 el.set(attr, _num(v))
             if el.tag == "body" and ("inertial", name) in self.exact:
                 inertial = el.find("inertial")
-                if inertial is not None:
-                    for attr in ("quat", "diaginertia", "fullinertia"):
-                        inertial.attrib.pop(attr, None)
-                    for attr, v in self.exact[("inertial", name)].items():
-                        inertial.set(attr, _num(v))
+                if inertial is None:  # MuJoCo's writer leaves out tiny inertials
+                    inertial = etree.Element("inertial")
+                    el.insert(0, inertial)
+                for attr in ("quat", "diaginertia", "fullinertia"):
+                    inertial.attrib.pop(attr, None)
+                for attr, v in self.exact[("inertial", name)].items():
+                    inertial.set(attr, _num(v))
         return etree.tostring(root, encoding="unicode", pretty_print=True)
 
 

@@ -408,6 +408,8 @@ class SkeletonReader:
         for set_tag in ("ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet", "ComponentSet"):
             for el in self.set_objects(set_tag):
                 self.check_known(el)
+                if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
+                    continue  # paths are read by o2m.paths
                 skipped.append(Skipped(el.tag, el.get("name", ""), _skip_reason(set_tag)))
         grav = self.model.find("gravity")
         gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
@@ -417,7 +419,7 @@ class SkeletonReader:
 
 def _skip_reason(set_tag: str) -> str:
     return {
-        "ForceSet": "forces and muscles are not converted yet (muscle conversion is the next step)",
+        "ForceSet": "this force is not converted yet",
         "ContactGeometrySet": "contact geometry is not converted",
         "ControllerSet": "controllers are not part of a MuJoCo model",
         "ProbeSet": "probes are analysis tools, not part of a MuJoCo model",
