@@ -72,43 +72,52 @@ class TendonBuilder:
             loc[i] += float(fn(np.array([values[cname]]))[0]) - ref
         return loc
 
-    def conditional_motion(self, point: PathPoint, before: PathPoint, after: PathPoint) -> dict[int, tuple]:
+    def conditional_motion(self, point: PathPoint, points: list[PathPoint]) -> dict[int, tuple]:
         """Location functions that reproduce a ConditionalPathPoint's switching.
 
         Inside its range the point stays where it is; outside, it moves to the closest point of
-        the straight segment between its neighbours, where it leaves the path length unchanged.
-        Tabulated over the coordinate's range with the other coordinates at the reference pose."""
+        the straight segment between the nearest points before and after it that are active
+        then, where it leaves the path length unchanged. Tabulated over the coordinate's range
+        with the other coordinates at the reference pose."""
         cname, lo, hi = point.condition
-        kind = "rotation"
-        if cname in self.b.coord_joint:
-            kind = self.b.coord_joint[cname][1].kind
+        kind = self.b.coord_joint[cname][1].kind if cname in self.b.coord_joint else "rotation"
         flo, fhi = self.b.fit_range(cname, kind)
         grid = np.linspace(min(flo, lo), max(fhi, hi), 241)
+        k0 = points.index(point)
         table = np.empty((grid.size, 3))
         for k, q in enumerate(grid):
             if lo <= q <= hi:
                 table[k] = point.location
                 continue
             values = self.b.coordinate_values({cname: q})
+
+            on = [p.condition is None or p.condition[1] <= values[p.condition[0]] <= p.condition[2] for p in points]
+            before = next((p for p, a in zip(points[k0 - 1::-1], on[k0 - 1::-1], strict=True) if a), None) \
+                if k0 > 0 else None
+            after = next((p for p, a in zip(points[k0 + 1:], on[k0 + 1:], strict=True) if a), None)
+            if before is None or after is None:
+                raise self.b.doc.error(point.element, "is a ConditionalPathPoint with no active point on one side")
             frames = self.b.ground_frames_at(values)
-            to_body = frames[point.body].inverse()
-            a = to_body @ frames[before.body] @ Transform(pos=self.location_at(before, values))
-            c = to_body @ frames[after.body] @ Transform(pos=self.location_at(after, values))
-            ab = c.pos - a.pos
-            t = np.clip((point.location - a.pos) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0)
-            table[k] = a.pos + t * ab
+
+            def world(p: PathPoint) -> np.ndarray:
+                return frames[p.body].apply(self.location_at(p, values))  # noqa: B023
+
+            a, c = world(before), world(after)
+            ab = c - a
+            # inactive points between the same two active ones keep their order along the segment
+            t = 0.0
+            for p in points[points.index(before) + 1:k0 + 1]:
+                t = max(t, float(np.clip((world(p) - a) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0)))
+            table[k] = frames[point.body].inverse().apply(a + t * ab)
         return {i: (cname, lambda x, i=i: np.interp(x, grid, table[:, i]))
                 for i in range(3) if np.ptp(table[:, i]) > 1e-9}
 
-    def add_point(self, path: Path, point: PathPoint, before: PathPoint | None = None,
-                  after: PathPoint | None = None) -> str:
-        """Add the site of ``point`` (``before`` and ``after``: its neighbours); returns its name."""
+    def add_point(self, path: Path, point: PathPoint) -> str:
+        """Add the site of ``point``; returns its name."""
         name = self._unique(point.name if point.name.startswith(path.owner) else f"{path.owner}-{point.name}")
         moving = {i: m for i, m in point.moving.items() if not self._fixed(m[0])}
         if point.condition is not None and not self._fixed(point.condition[0]):
-            if before is None or after is None:
-                raise self.b.doc.error(point.element, "is a ConditionalPathPoint at the end of a path")
-            moving = self.conditional_motion(point, before, after)
+            moving = self.conditional_motion(point, path.points)
             self.b.result.notes.append(
                 f"ConditionalPathPoint '{point.name}' moves onto the segment between its neighbours outside "
                 f"[{point.condition[1]:g}, {point.condition[2]:g}] of '{point.condition[0]}'")
@@ -248,9 +257,7 @@ class TendonBuilder:
 
     # -- tendons and actuators -----------------------------------------------------------
     def add_path(self, path: Path) -> None:
-        pts = path.points
-        sites = [self.add_point(path, p, pts[i - 1] if i > 0 else None, pts[i + 1] if i + 1 < len(pts) else None)
-                 for i, p in enumerate(pts)]
+        sites = [self.add_point(path, p) for p in path.points]
         sites_ground = np.array([(self.b.ground_frames[p.body] @ Transform(pos=p.location)).pos for p in path.points])
         placed = []
         for seg, wrap in self.place_wraps(path, sites_ground):
