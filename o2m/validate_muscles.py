@@ -240,9 +240,10 @@ class _Pair:
         self.extra_tendons = [n for n in tendon_names if n not in os_names]
 
     # -- OpenSim ------------------------------------------------------------------------
-    def os_state(self, values: Mapping[str, float] | None) -> Any:
+    def os_state(self, values: Mapping[str, float] | None, assemble: bool = True) -> Any:
         """A realised OpenSim state: init_state when ``values`` is None, else a copy with the
-        given independent coordinates set and assembled. Raises on assembly failure."""
+        given independent coordinates set and assembled (when ``assemble``, or when some
+        coordinate is dependent). Raises on assembly failure."""
         if values is None:
             state = self.init_state
         else:
@@ -250,7 +251,8 @@ class _Pair:
             for c in self.indep:
                 if c.getName() in values:
                     c.setValue(state, float(values[c.getName()]), False)
-            self.os_model.assemble(state)
+            if assemble or self.dependent:
+                self.os_model.assemble(state)
         self.os_model.realizePosition(state)
         return state
 
@@ -756,7 +758,7 @@ def sweep_jumps(
     Returns a JSON-safe dict::
 
         {"osim_path", "mjcf_path", "step", "linear_step",
-         "coordinates": {coordinate: {"range": [lo, hi], "steps": n,
+         "coordinates": {coordinate: {"range": [lo, hi], "steps": n, "opensim_swept": bool,
              "tendons": {tendon: {"mujoco": max |dL| (m), "mujoco_at": [q0, q1],
                                   "opensim": max |dL| (m) or None, "opensim_at": [q0, q1] or None}}}},
          "worst": {tendon: {"coordinate", "mujoco", "opensim"}},   # each tendon's largest MuJoCo jump
@@ -765,7 +767,10 @@ def sweep_jumps(
     ``jumps`` lists, largest first, the (tendon, coordinate) pairs whose MuJoCo jump exceeds
     ``jump_factor`` times OpenSim's plus ``jump_atol`` metres (without OpenSim, with
     ``opensim=False`` or for a tendon OpenSim lacks: ``jump_atol`` alone): wrapping flips and
-    other discontinuities. OpenSim steps that fail to assemble are left out.
+    other discontinuities. OpenSim steps that fail to assemble are left out. OpenSim is swept
+    only along coordinates that some OpenSim path spans or that change some MuJoCo tendon length
+    (``opensim_swept``); along the others every OpenSim jump is 0 (e.g. a free base's
+    translations, which would take thousands of 1 mm steps).
     """
     from tqdm.auto import tqdm
 
@@ -774,18 +779,25 @@ def sweep_jumps(
     os_index = {n: i for i, (n, _, _) in enumerate(pair.matched)}
     out: dict[str, Any] = {"osim_path": pair.osim_path, "mjcf_path": pair.mjcf_path, "step": float(step),
                            "linear_step": float(linear_step), "coordinates": {}, "worst": {}, "jumps": []}
+    spans = pair.spanned() if opensim else {}
     desc = f"sweep {os.path.basename(pair.osim_path)}"
     for c in tqdm(pair.indep, disable=not progress, desc=desc):
         cname = c.getName()
         qs = pair.sweep_values(c, step, linear_step)
         l_mj = np.array([pair.mj_lengths({**pair.defaults, cname: float(q)}) for q in qs]).reshape(len(qs), -1)
         l_os = np.full((len(qs), len(pair.matched)), np.nan)
-        if opensim and pair.matched:
+        # OpenSim only where a length can change: a path spans the coordinate in OpenSim, or a
+        # MuJoCo tendon length changes; elsewhere every OpenSim length is constant (jump 0).
+        os_needed = opensim and bool(pair.matched) and (
+            any(cname in s for s in spans.values()) or bool(l_mj.size and np.ptp(l_mj, axis=0).max() > 1e-12))
+        if os_needed:
             for k, q in enumerate(qs):
                 try:
-                    l_os[k] = pair.os_lengths(pair.os_state({cname: float(q)}))
+                    l_os[k] = pair.os_lengths(pair.os_state({cname: float(q)}, assemble=False))
                 except Exception:
                     pass
+        elif opensim:
+            l_os[:] = 0.0
         d_mj = np.abs(np.diff(l_mj, axis=0))
         d_os = np.abs(np.diff(l_os, axis=0))
         tend: dict[str, Any] = {}
@@ -808,7 +820,8 @@ def sweep_jumps(
             if w is None or row["mujoco"] > w["mujoco"]:
                 out["worst"][tn] = {"coordinate": cname, "mujoco": row["mujoco"], "opensim": row["opensim"]}
         lo, hi = _sample_bounds(c)
-        out["coordinates"][cname] = {"range": [lo, hi], "steps": int(len(qs)), "tendons": tend}
+        out["coordinates"][cname] = {"range": [lo, hi], "steps": int(len(qs)), "opensim_swept": os_needed,
+                                     "tendons": tend}
     out["jumps"].sort(key=lambda j: -j["mujoco"])
     return _clean(out)
 
@@ -874,7 +887,7 @@ def plot_moment_arms(
     x = qs * 1e3 if linear else np.rad2deg(qs)
     scale = 1.0 if linear else 1e3
     if ax is None:
-        _, ax = plt.subplots(figsize=(5, 3.5))
+        _, ax = plt.subplots(figsize=(5, 3.5), layout="constrained")
     ax.plot(x, r_os * scale, "-", lw=2.5, color="0.6", label="OpenSim")
     ax.plot(x, r_mj * scale, "--", lw=1.2, color="C0", label="MuJoCo")
     ax.set_xlabel(f"{coordinate} ({'mm' if linear else 'deg'})")

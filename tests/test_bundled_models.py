@@ -19,7 +19,7 @@ from o2m import models
 from o2m.convert import convert
 from o2m.validate import compare_kinematics
 
-from .conftest import require_mirror
+from .conftest import approximation_budget, require_mirror
 
 POSES = 200
 POS_TOL = 1e-4  # m (0.1 mm)
@@ -38,30 +38,6 @@ def converted(request, tmp_path_factory):
     return request.param, fetched.osim, conv
 
 
-def _budget(xml, approximations) -> dict[str, tuple[float, float]]:
-    """Per body: (position, angle) error allowed by the recorded fits of the joints above it.
-
-    A slide fit adds its error (m) to the position; a hinge fit adds its error (rad) to the
-    angle and, times 1 m (longer than any limb segment chain here), to the position.
-    """
-    m = mujoco.MjModel.from_xml_path(str(xml))
-    per_joint = {a.joint: a for a in approximations if a.joint}
-    own = np.zeros((m.nbody, 2))
-    for j in range(m.njnt):
-        a = per_joint.get(m.joint(j).name)
-        if a is None:
-            continue
-        b = m.jnt_bodyid[j]
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-            own[b, 0] += a.max_error
-        else:
-            own[b] += (a.max_error * 1.0, a.max_error)
-    total = own.copy()
-    for b in range(1, m.nbody):  # parents come before children in MuJoCo's body order
-        total[b] += total[m.body_parentid[b]]
-    return {m.body(b).name: (float(total[b, 0]), float(total[b, 1])) for b in range(1, m.nbody)}
-
-
 def test_structure_is_exact(converted):
     name, osim, conv = converted
     rep = compare_kinematics(osim, conv.xml, n_poses=POSES, seed=1, dependents="opensim")
@@ -74,7 +50,7 @@ def test_structure_is_exact(converted):
 def test_kinematics_match_opensim(converted):
     name, osim, conv = converted
     rep = compare_kinematics(osim, conv.xml, n_poses=POSES, seed=0)
-    budget = _budget(conv.xml, conv.report.approximations)
+    budget = approximation_budget(conv.xml, conv.report.approximations)
     assert rep.n_poses == POSES and not rep.missing_bodies
     for body, err in rep.bodies.items():
         pos_extra, ang_extra = budget[body]
