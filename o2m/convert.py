@@ -16,12 +16,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import mujoco
+import numpy as np
 from lxml import etree
 
 from .document import load_document
 from .errors import O2MError
 from .mjcf import Approximation, JointRecord, MjcfBuilder, add_geometry
-from .paths import read_paths, read_wrap_objects
+from .paths import MUSCLE_TYPES, read_paths, read_wrap_objects
 from .skeleton import SkeletonReader, Skipped, read_skeleton
 from .tendons import add_paths, tendon_length_ranges
 
@@ -95,11 +96,13 @@ class Conversion:
 
 
 def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | Path] | None = None,
-            name: str | None = None) -> Conversion:
+            name: str | None = None, fit_mechanics: bool = True) -> Conversion:
     """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
 
     ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
-    its ``Geometry/`` subfolder, as OpenSim searches. Raises an :class:`~o2m.errors.O2MError`
+    its ``Geometry/`` subfolder, as OpenSim searches. ``fit_mechanics`` fits each muscle
+    actuator's force-length parameters to OpenSim's forces (:func:`o2m.muscles.fit_muscles`);
+    without it muscles get MuJoCo's defaults. Raises an :class:`~o2m.errors.O2MError`
     subclass for bad input; nothing is written then.
     """
     t0 = time.perf_counter()
@@ -111,7 +114,10 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     builder = MjcfBuilder(skel)
     result = builder.build()
     reader = SkeletonReader(doc)
-    add_paths(builder, read_paths(reader, builder.ref), read_wrap_objects(reader))
+    paths = read_paths(reader, builder.ref)
+    add_paths(builder, paths, read_wrap_objects(reader))
+    muscle_skipped = _fit_mechanics(result, osim) if fit_mechanics and any(
+        p.owner_type in MUSCLE_TYPES for p in paths) else []
     search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs or []]
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".o2m-", dir=out_dir.parent) as tmp:
@@ -143,29 +149,46 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
                     "mujoco joints": model.njnt, "mujoco equalities": model.neq, "meshes": model.nmesh,
                     "geoms": model.ngeom},
             joints=result.joints, approximations=result.approximations,
-            skipped=skel.skipped + geom_skipped, notes=result.notes, warnings=warnings)
+            skipped=skel.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings)
         report.write(stage, stem)
         _publish(stage, out_dir, stem)
     return Conversion(out_dir / f"{stem}.xml", report)
 
 
+def _fit_mechanics(result, osim: Path) -> list[Skipped]:
+    """Fit every muscle actuator to OpenSim's muscle forces; record each fit's error."""
+    from .muscles import fit_muscles
+
+    fits = fit_muscles(osim)
+    for act in result.spec.actuators:
+        p = fits.get(act.name)
+        if p is None:
+            continue
+        p.apply_to(act)
+        result.approximations.append(Approximation(
+            p.type, p.name, "MuJoCo muscle force-length fitted to OpenSim's tendon force (rigid tendon)",
+            float(max(p.err_active_max_pct, p.err_passive_max_pct)), "% of max isometric force",
+            f"active rms {p.err_active_rms_pct:.2f} %, passive rms {p.err_passive_rms_pct:.2f} %"))
+    return list(fits.skipped)
+
+
 def _set_length_ranges(spec: mujoco.MjSpec, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
-    """Give every tendon actuator the length range of its tendon over the coordinates' ranges."""
-    if model.nu == 0:
+    """Give every tendon actuator without one the length range of its tendon over the coordinates' ranges."""
+    todo = [a for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_TENDON and not np.any(a.lengthrange)]
+    if not todo:
         return
     coords = {}
     for name, (_, ax) in builder.coord_joint.items():
         if builder.drivers[name].base == name:
             coords[name] = builder.fit_range(name, ax.kind)
     ranges = tendon_length_ranges(model, coords)
-    for act in spec.actuators:
-        if act.trntype == mujoco.mjtTrn.mjTRN_TENDON:
-            lo, hi = ranges[model.tendon(act.target).id]
-            if hi - lo < 1e-4 * max(lo, 1e-3):  # spans no free coordinate (e.g. only locked ones)
-                builder.result.notes.append(f"{act.name}: tendon length constant at {lo:.6g} m over the free "
-                                            f"coordinates; length range set to ±1% around it")
-                lo, hi = 0.99 * lo, 1.01 * hi
-            act.lengthrange = [lo, hi]
+    for act in todo:  # actuators whose length range no muscle fit gave
+        lo, hi = ranges[model.tendon(act.target).id]
+        if hi - lo < 1e-4 * max(lo, 1e-3):  # spans no free coordinate (e.g. only locked ones)
+            builder.result.notes.append(f"{act.name}: tendon length constant at {lo:.6g} m over the free "
+                                        f"coordinates; length range set to ±1% around it")
+            lo, hi = 0.99 * lo, 1.01 * hi
+        act.lengthrange = [lo, hi]
 
 
 def _relative_meshdir(xml: str) -> str:

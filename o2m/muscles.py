@@ -373,7 +373,8 @@ def _worker_lengths(osim_path: str, poses: np.ndarray) -> np.ndarray:
 
 _BENCH_PATH = """<GeometryPath name="path"><PathPointSet><objects>
 <PathPoint name="origin"><socket_parent_frame>/ground</socket_parent_frame><location>0 0 0</location></PathPoint>
-<PathPoint name="insertion"><socket_parent_frame>/bodyset/{body}</socket_parent_frame><location>0 0 0</location></PathPoint>
+<PathPoint name="insertion"><socket_parent_frame>/bodyset/{body}</socket_parent_frame>
+<location>0 0 0</location></PathPoint>
 </objects></PathPointSet></GeometryPath>"""
 
 _BENCH_BODY = """<Body name="{body}"><mass>1</mass><mass_center>0 0 0</mass_center>
@@ -429,8 +430,11 @@ class _Bench:
         with tempfile.TemporaryDirectory(prefix="o2m-bench-") as tmp:
             path = Path(tmp) / "bench.osim"
             path.write_text(_bench_document(elements))
-            self.model = osim.Model(str(path))
-        self.state = self.model.initSystem()
+            try:
+                self.model = osim.Model(str(path))
+                self.state = self.model.initSystem()
+            except Exception as exc:  # a muscle's own properties are invalid
+                raise ModelFileError(f"OpenSim rejects the model's muscles: {exc}") from exc
         cs = self.model.getCoordinateSet()
         self.coords = [cs.get(f"length_{i}") for i in range(len(elements))]
         ms = self.model.getMuscles()
@@ -448,9 +452,15 @@ class _Bench:
             for c, v in zip(self.coords, lengths[:, j], strict=True):
                 c.setValue(s, float(v), False)
                 c.setSpeedValue(s, 0.0)
+            # the activation state, and the excitation (the muscle's control) for muscles whose
+            # activation is their excitation (RigidTendonMuscle, ignore_activation_dynamics)
             for m in self.muscles:
                 m.setActivation(s, activation)
             self.model.realizeVelocity(s)
+            controls = self.model.updControls(s)
+            for m in self.muscles:
+                m.setControls(_opensim().Vector(1, float(activation)), controls)
+            self.model.setControls(s, controls)
             ok = np.ones(nm, dtype=bool)
             for i, m in enumerate(self.muscles):
                 try:
@@ -579,7 +589,6 @@ def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float
 
 @dataclass
 class _FitTask:
-    index: int
     name: str
     type: str
     force: float
@@ -678,7 +687,8 @@ def _fit_length(t: _FitTask) -> tuple[np.ndarray, np.ndarray, float, float]:
         for x0 in starts:
             try:
                 res = least_squares(_residuals, x0, jac=_jacobian, bounds=(_LOWER, _UPPER), args=args,
-                                    method="trf", x_scale=np.array([0.1, 0.1, 0.1, 0.1, 0.3]), max_nfev=200)
+                                    method="trf", x_scale=np.array([0.1, 0.1, 0.1, 0.1, 0.3]), max_nfev=200,
+                                    ftol=1e-6, xtol=1e-6, gtol=1e-6)
             except ValueError:
                 continue
             c = cost(res.x)
@@ -852,7 +862,8 @@ def fit_muscles(osim_path: str | os.PathLike, *, n_poses: int = 300, seed: int =
         ends = np.array(ends).reshape(-1, nq)
         len_ends = pm.lengths(ends)
         # coordinates each muscle spans: its length changes when the coordinate goes to a range end
-        delta = np.abs(len_ends[1:] - len_ends[0][None, :]).reshape(nq, 2, -1).max(axis=1)  # (nq, nm)
+        nm = len(pm.muscles)
+        delta = np.abs(len_ends[1:] - len_ends[0][None, :]).reshape(nq, 2, nm).max(axis=1) if nq else np.zeros((0, nm))
         spans = {i: tuple(int(k) for k in np.flatnonzero(delta[:, i] > 1e-7)) for i in supported}
         corner_rng = np.random.default_rng([seed, 1])
         corner_poses = [_corner_poses(pm.bounds, pm.defaults, s, corner_rng) for s in sorted(set(spans.values()))]
@@ -914,7 +925,7 @@ def fit_muscles(osim_path: str | os.PathLike, *, n_poses: int = 300, seed: int =
             fv, vmax_os, fv_notes = _force_velocity(m, type_name, u)
             nt.extend(fv_notes)
             tasks.append(_FitTask(
-                index=k, name=name, type=type_name, force=_prop(m, "max_isometric_force"),
+                name=name, type=type_name, force=_prop(m, "max_isometric_force"),
                 lopt=_prop(m, "optimal_fiber_length"), lts=_prop(m, "tendon_slack_length"),
                 alpha=_prop(m, "pennation_angle_at_optimal", 0.0), vmax_os=vmax_os, lengthrange=lr[k].copy(),
                 lengths=grid[k].copy(), active=f_act[k].copy(), passive=f_pas[k].copy(), fv_u=u, fv=fv,
