@@ -387,6 +387,11 @@ def format_table(reports: Mapping[str, KinematicsReport]) -> str:
         )
         for name, r in reports.items()
     ]
+    return text_table(head, rows)
+
+
+def text_table(head: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
+    """A plain-text table: first column left-aligned, the others right-aligned, a rule under ``head``."""
     widths = [max(len(row[i]) for row in [head, *rows]) for i in range(len(head))]
 
     def fmt(row: tuple[str, ...]) -> str:

@@ -40,6 +40,7 @@ from o2m.validate import (
     joint_equality_plan,
     joint_qpos_address,
     pose_mujoco,
+    text_table,
 )
 
 __all__ = [
@@ -549,13 +550,7 @@ def format_muscle_table(reports: Mapping[str, MuscleReport]) -> str:
         )
         for name, r in reports.items()
     ]
-    widths = [max(len(row[i]) for row in [head, *rows]) for i in range(len(head))]
-
-    def fmt(row: tuple[str, ...]) -> str:
-        cells = zip(row, widths, strict=True)
-        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(cells))
-
-    return "\n".join([fmt(head), "  ".join("-" * w for w in widths), *(fmt(r) for r in rows)])
+    return text_table(head, rows)
 
 
 # --------------------------------------------------------------------------------------------
