@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from .errors import O2MError
 
 
@@ -77,6 +79,23 @@ def cmd_run(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_dataset(a: argparse.Namespace) -> int:
+    """Generate the MoBL-ARMS excitation sets and their OpenSim reference trajectories."""
+    from .dataset import make_dataset
+
+    ds = make_dataset(a.out, n_sets=a.sets, seed=a.seed, timeout=a.timeout, max_workers=a.workers)
+    fails = ds.failures()
+    print(f"{len(ds.ok)} sets, {int(ds.ok.sum())} succeeded, {len(fails)} failed; "
+          f"split {len(ds.train)} train / {len(ds.test)} test -> {a.out}")
+    for i, status, reason in fails:
+        print(f"  set {i}: {status}: {reason}")
+    ok_times = ds.wall_time[ds.ok]
+    if len(ok_times):
+        print(f"OpenSim wall time per 1-s run: median {np.median(ok_times):.1f} s "
+              f"(min {ok_times.min():.1f}, max {ok_times.max():.1f})")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="o2m", description="Convert OpenSim models to MuJoCo and measure their fidelity.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -102,6 +121,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--quick", action="store_true", help="20 poses per model instead of --poses")
     r.set_defaults(func=cmd_run)
+    d = sub.add_parser("dataset", help="generate the MoBL-ARMS excitation sets and OpenSim reference trajectories")
+    d.add_argument("--out", default="data/mobl_arms", help="output folder (default: data/mobl_arms)")
+    d.add_argument("--sets", type=int, default=100)
+    d.add_argument("--seed", type=int, default=2020)
+    d.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit per OpenSim run, s")
+    d.add_argument("--workers", type=int, default=None, help="parallel OpenSim processes (default: all cores)")
+    d.set_defaults(func=cmd_dataset)
     return p
 
 

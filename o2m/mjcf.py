@@ -40,6 +40,12 @@ from .transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat
 #: Mass (kg) and principal inertia (kg m²) given to massless moving bodies, which MuJoCo rejects.
 MIN_MASS = 1e-8
 MIN_INERTIA = 1e-12
+#: Softness of every joint equality o2m writes (couplers, coupled axes, path-point carriers): the
+#: shortest time constant MuJoCo allows at the default 2 ms step, critically damped, and an
+#: impedance of 0.999, so a load deflects a coupling by about 1e-3 of what MuJoCo's default
+#: (0.02 s, 0.9..0.95) allows. OpenSim's constraints are exact.
+EQUALITY_SOLREF = (0.004, 1.0)
+EQUALITY_SOLIMP = (0.999, 0.999, 0.001, 0.5, 2.0)
 #: Range over which a coupling with an unbounded driving coordinate is fitted (rad or m).
 UNBOUNDED_FIT_RANGE = {"rotation": (-np.pi, np.pi), "translation": (-1.0, 1.0)}
 #: Samples used to decide whether a function is linear over a range.
@@ -379,6 +385,8 @@ class MjcfBuilder:
         data = np.zeros(eq.data.shape)
         data[:5] = coef
         eq.data = data
+        eq.solref = list(EQUALITY_SOLREF)
+        eq.solimp = list(EQUALITY_SOLIMP)
         self.exact[("equality", name)] = {"polycoef": np.asarray(coef, dtype=float)}
 
     def restore_precision(self, xml: str) -> str:

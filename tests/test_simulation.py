@@ -1,0 +1,125 @@
+"""Forward simulation in OpenSim and MuJoCo: agreement, batching, and failure records."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+
+import mujoco
+import numpy as np
+import pytest
+
+from o2m import models
+from o2m.activations import generate_activations
+from o2m.convert import convert
+from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout, state_layout, step_loop
+from o2m.opensim_sim import OpenSimRun, run_isolated, run_many, simulate
+
+from .conftest import require_mirror
+
+ARM26_MUSCLES = ["TRIlong", "TRIlat", "TRImed", "BIClong", "BICshort", "BRA"]
+
+
+@pytest.fixture(scope="module")
+def arm26(tmp_path_factory):
+    require_mirror()
+    fetched = models.fetch_model_with_geometry("arm26", progress=False)
+    conv = convert(fetched.osim, tmp_path_factory.mktemp("arm26"), geometry_dirs=[fetched.geometry_dir])
+    return fetched.osim, mujoco.MjModel.from_xml_path(str(conv.xml))
+
+
+def test_opensim_and_mujoco_agree_on_a_passive_swing(arm26):
+    """Zero excitation for 0.2 s: the arm falls under gravity and passive muscle forces.
+
+    The elbow moves about 0.4 rad; MuJoCo stays within 0.1 rad of OpenSim (measured: 0.037 rad
+    shoulder, 0.066 rad elbow; the rest is the MuJoCo muscle model and OpenSim's 1 % minimum
+    activation, which the parameter fit and the corrective controls address).
+    """
+    osim, model = arm26
+    t = np.arange(101) * 0.002
+    exc = np.zeros((len(t), 6))
+    run = simulate(osim, t, exc, ARM26_MUSCLES)
+    assert run.ok and np.isfinite(run.coordinates).all()
+    init = initial_state(model, dict(zip(run.coordinate_names, run.coordinates[0])),
+                         activations=dict(zip(run.muscle_names, run.activations[0])))
+    tr = rollout(model, init, controls_from_excitations(model, ARM26_MUSCLES, exc)[None],
+                 joint_names=run.coordinate_names)
+    assert not tr.diverged[0]
+    assert np.array_equal(tr.coordinates[0, 0], run.coordinates[0])  # same initial state
+    moved = np.abs(run.coordinates[-1] - run.coordinates[0])
+    assert moved.max() > 0.3
+    err = np.abs(tr.coordinates[0] - run.coordinates)
+    assert err.max() < 0.1, err.max(axis=0)
+
+
+def test_batched_rollout_equals_a_plain_step_loop(arm26):
+    _, model = arm26
+    sets = generate_activations(ARM26_MUSCLES, 4, seed=3)
+    ctrl = controls_from_excitations(model, ARM26_MUSCLES, sets.values[:, :200])
+    rng = np.random.default_rng(0)
+    init = np.stack([initial_state(model, {"r_shoulder_elev": rng.uniform(0, 1), "r_elbow_flex": rng.uniform(0, 2)})
+                     for _ in range(4)])
+    batched = rollout(model, init, ctrl, nthread=2)
+    looped = step_loop(model, init, ctrl)
+    assert batched.qpos.shape == (4, 200, model.nq)
+    assert np.array_equal(batched.states, looped.states)
+    assert not batched.diverged.any()
+    assert np.allclose(batched.times, np.arange(200) * model.opt.timestep)
+
+
+def test_controls_are_step_means_of_linear_excitations(arm26):
+    _, model = arm26
+    exc = np.linspace(0, 1, 11)[:, None] * np.ones((1, 6))
+    ctrl = controls_from_excitations(model, ARM26_MUSCLES, exc)
+    assert ctrl.shape == (10, model.nu)
+    ids = [model.actuator(m).id for m in ARM26_MUSCLES]
+    assert np.allclose(ctrl[:, ids], (np.arange(10)[:, None] + 0.5) / 10)
+
+
+def test_initial_state_sets_named_values(arm26):
+    _, model = arm26
+    s = initial_state(model, {"r_elbow_flex": 1.0, "not_a_joint": 3.0}, speeds={"r_elbow_flex": -2.0},
+                      activations={"BIClong": 0.3}, time=0.5)
+    lay = state_layout(model)
+    adr = model.joint("r_elbow_flex").qposadr[0]
+    assert s[lay["time"]][0] == 0.5
+    assert s[lay["qpos"]][adr] == 1.0 and s[lay["qvel"]][model.joint("r_elbow_flex").dofadr[0]] == -2.0
+    assert s[lay["act"]][model.actuator_actadr[model.actuator("BIClong").id]] == 0.3
+
+
+def test_divergence_is_flagged(arm26):
+    _, model = arm26
+    bad = initial_state(model, {"r_elbow_flex": 1.0})
+    lay = state_layout(model)
+    bad[lay["qvel"]] = 1e12  # MuJoCo resets such a state and says so only in a warning
+    tr = rollout(model, np.stack([initial_state(model, {}), bad]), np.zeros((2, 20, model.nu)))
+    assert tr.diverged.tolist() == [False, True]
+
+
+def test_failures_are_recorded_not_raised(arm26, tmp_path):
+    osim, _ = arm26
+    t = np.arange(101) * 0.002
+    missing = run_isolated(tmp_path / "missing.osim", t, np.zeros((len(t), 6)), ARM26_MUSCLES, timeout=60)
+    assert missing.status == "failed" and "Cannot open file" in missing.reason
+    long_t = np.arange(2001) * 0.002
+    slow = run_isolated(osim, long_t, np.full((len(long_t), 6), 0.5), ARM26_MUSCLES, timeout=1.0)
+    assert slow.status == "timeout" and slow.t_reached < long_t[-1]
+    nan = np.zeros((len(t), 6))
+    nan[50:, 3] = np.nan
+    run = simulate(osim, t, nan, ARM26_MUSCLES)
+    assert run.status == "nan" and not np.isfinite(run.coordinates).all()
+
+
+def test_run_many_keeps_going_past_a_failure_on_a_dask_cluster(arm26):
+    distributed = pytest.importorskip("distributed")
+    osim, _ = arm26
+    t = np.arange(101) * 0.002
+    sets = np.zeros((3, len(t), 6))
+    sets[1, :, 3] = np.nan  # this set goes non-finite
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as c, \
+            distributed.Client(c) as client:
+        runs = run_many(osim, t, sets, ARM26_MUSCLES, executor=client.get_executor(), progress=False)
+    assert [r.status for r in runs] == ["ok", "nan", "ok"]
+    assert all(isinstance(r, OpenSimRun) for r in runs)
+    with cf.ThreadPoolExecutor(2) as pool:
+        again = run_many(osim, t, sets[[0, 2]], ARM26_MUSCLES, executor=pool, progress=False)
+    assert np.array_equal(again[0].coordinates, runs[0].coordinates)
