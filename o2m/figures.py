@@ -1,0 +1,126 @@
+"""The paper's figures, drawn from stored results (no simulation here).
+
+:func:`make_figures` reads ``<results>/results.npz`` and ``summary.json`` (from
+:func:`o2m.paper.run_paper`) and ``speed.json`` (from :mod:`o2m.speed`) and writes PNG and PDF
+files to ``figures/``:
+
+1. ``joint_errors``: mean absolute error per joint over the test sets, converted / fitted /
+   corrected (rad).
+2. ``corrections_boxplot``: per muscle, the mean absolute activation correction over the test sets.
+3. ``speed``: time of one 1-s simulation in OpenSim and in MuJoCo, and their ratio.
+4. ``overlay``: joint trajectories of a few test sets, OpenSim against MuJoCo.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["correction_boxplot", "joint_error_bars", "make_figures", "overlay", "speed_bars"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def joint_error_bars(dofs: list[str], errors: dict[str, np.ndarray]):
+    """Grouped bars of the mean absolute error per joint (rad); ``errors`` maps a label to (n_sets, n_dofs)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    width = 0.8 / max(1, len(errors))
+    x = np.arange(len(dofs))
+    for k, (label, e) in enumerate(errors.items()):
+        mean = np.nanmean(e, axis=0)
+        ax.bar(x + (k - (len(errors) - 1) / 2) * width, mean, width, label=f"{label} (mean {np.nanmean(e):.3f})")
+    ax.set_xticks(x, dofs, rotation=20)
+    ax.set_ylabel("mean absolute error (rad)")
+    ax.set_title("Joint error against OpenSim, test sets")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def correction_boxplot(muscles: list[str], correction_mae: np.ndarray):
+    """Boxplot per muscle of the mean absolute correction over test sets; ``correction_mae`` (n_sets, n_muscles)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(11, 3.5))
+    ax.boxplot(correction_mae, tick_labels=muscles, showfliers=True)
+    ax.tick_params(axis="x", rotation=90, labelsize=7)
+    ax.set_ylabel("mean |corrected - reference|")
+    ax.set_title(f"Activation corrections per muscle (mean over all {np.mean(correction_mae):.3f})")
+    fig.tight_layout()
+    return fig
+
+
+def speed_bars(speed: dict):
+    """Bars of the median time of one 1-s simulation in each simulator (log scale), with the ratio."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(4.5, 3.5))
+    labels = ["OpenSim", "MuJoCo"]
+    values = [speed["opensim_median_s"], speed["mujoco_median_s"]]
+    ax.bar(labels, values, color=["tab:gray", "tab:blue"])
+    ax.set_yscale("log")
+    for i, v in enumerate(values):
+        ax.text(i, v, f"{v:.3g} s", ha="center", va="bottom")
+    ax.set_ylabel("time of one 1-s simulation (s)")
+    ax.set_title(f"MuJoCo is {speed['ratio']:.0f}x faster")
+    fig.tight_layout()
+    return fig
+
+
+def overlay(times: np.ndarray, dofs: list[str], opensim: np.ndarray, mujoco: dict[str, np.ndarray], title: str = ""):
+    """Joint trajectories (T, n_dofs) of one set: OpenSim against each labelled MuJoCo variant (rad)."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, len(dofs), figsize=(3 * len(dofs), 2.8), sharex=True)
+    for j, ax in enumerate(np.atleast_1d(axes)):
+        ax.plot(times, opensim[:, j], "k", lw=2, label="OpenSim")
+        for label, q in mujoco.items():
+            ax.plot(times, q[:, j], lw=1, label=label)
+        ax.set_title(dofs[j], fontsize=9)
+        ax.set_xlabel("time (s)")
+    np.atleast_1d(axes)[0].set_ylabel("angle (rad)")
+    np.atleast_1d(axes)[0].legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def _save(fig, out: Path, name: str) -> list[Path]:
+    paths = [out / f"{name}.png", out / f"{name}.pdf"]
+    fig.savefig(paths[0], dpi=150)
+    fig.savefig(paths[1])
+    _plt().close(fig)
+    return paths
+
+
+def make_figures(results_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str] = "figures",
+                 speed_file: str | os.PathLike[str] | None = None) -> list[Path]:
+    """Write every figure that the stored results allow; returns the files written."""
+    res_dir, out = Path(results_dir), Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    npz = res_dir / "results.npz"
+    if npz.exists():
+        with np.load(npz) as z:
+            r = {k: z[k] for k in z.files}
+        dofs, muscles = [str(d) for d in r["dofs"]], [str(m) for m in r["muscles"]]
+        written += _save(joint_error_bars(dofs, {"converted": r["err_converted"], "fitted": r["err_fitted"],
+                                                 "corrected": r["err_corrected"]}), out, "joint_errors")
+        written += _save(correction_boxplot(muscles, r["correction_mae"]), out, "corrections_boxplot")
+        for k, s in enumerate(r["overlay_sets"]):
+            written += _save(overlay(r["times"], dofs, r["overlay_opensim"][k],
+                                     {"converted": r["overlay_converted"][k], "fitted": r["overlay_fitted"][k],
+                                      "corrected": r["overlay_corrected"][k]}, f"test set {int(s)}"),
+                             out, f"overlay_set{int(s):03d}")
+    sp = Path(speed_file) if speed_file else res_dir.parent / "speed.json"
+    if sp.exists():
+        written += _save(speed_bars(json.loads(sp.read_text())), out, "speed")
+    return written

@@ -1,0 +1,326 @@
+"""Fitting a converted model's dynamics to OpenSim trajectories with CMA-ES.
+
+The parameter vector is the paper's (Ikkala & Hämäläinen 2020): for each free degree of freedom
+its joint damping and the softness of its limit, for each tendon its damping and stiffness, and
+for each muscle a strength scale (160 parameters for MoBL-ARMS: 5 free DoFs, 50 muscles).
+
+Parameters are searched in log10 space, within the bounds of :data:`BOUNDS`:
+
+=====================  ==========================  =========================================
+parameter              MuJoCo field                bounds
+=====================  ==========================  =========================================
+``damping``            ``dof_damping``             1e-3 .. 10 N·m·s/rad (m: N·s/m)
+``limit_timeconst``    ``jnt_solref[:, 0]``        0.004 .. 0.5 s (a softer limit when larger)
+``tendon_damping``     ``tendon_damping``          1e-3 .. 100 N·s/m
+``tendon_stiffness``   ``tendon_stiffness``        1e-2 .. 1e4 N/m (rest length: qpos0 length)
+``muscle_scale``       ``actuator_gainprm[:, 2]``  0.5 .. 2 (x the converted max force)
+=====================  ==========================  =========================================
+
+Damping and stiffness can be zero in a converted model, so for them the searched variable is
+``log10(value + lower)``: its lower bound means exactly zero. A parameter starts at the converted
+model's value, so the start point reproduces the converted model exactly. CMA-ES searches a box
+normalised to [0, 1]^n.
+
+The objective (:class:`TrajectoryObjective`) is the paper's: the squared joint-position error
+against OpenSim, averaged over time and summed over the free DoFs and the training
+trajectories (rad²), plus ``penalty`` (default :data:`PENALTY`) times the squared log10
+distance of every parameter from its start, a small price on large changes. A trajectory
+MuJoCo had to reset costs :data:`DIVERGED_COST` per DoF.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import pickle
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from o2m.mujoco_sim import rollout
+
+__all__ = ["BOUNDS", "DIVERGED_COST", "FitResult", "PENALTY", "ParameterSpace", "TrajectoryObjective", "fit_cma",
+           "free_coordinates", "load_fit", "parameter_space", "save_fit"]
+
+BOUNDS: dict[str, tuple[float, float]] = {
+    "damping": (1e-3, 10.0),
+    "limit_timeconst": (0.004, 0.5),
+    "tendon_damping": (1e-3, 100.0),
+    "tendon_stiffness": (1e-2, 1e4),
+    "muscle_scale": (0.5, 2.0),
+}
+#: Kinds whose searched variable is log10(value + lower bound), so that zero is reachable.
+ZERO_AT_LOWER = frozenset({"damping", "tendon_damping", "tendon_stiffness"})
+PENALTY = 1e-3
+"""Weight of the squared log10 change of each parameter, rad² per decade²."""
+DIVERGED_COST = 10.0
+"""Cost per DoF of a trajectory MuJoCo had to reset (rad²; about a 3-rad error throughout)."""
+
+
+def free_coordinates(model: mujoco.MjModel, coordinate_names: Sequence[str]) -> list[str]:
+    """The names in ``coordinate_names`` that are hinge/slide joints no joint equality drives."""
+    driven = {int(model.eq_obj1id[i]) for i in range(model.neq)
+              if int(model.eq_type[i]) == int(mujoco.mjtEq.mjEQ_JOINT) and model.eq_active0[i]}
+    out = []
+    for name in coordinate_names:
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j >= 0 and j not in driven and int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE),
+                                                                       int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            out.append(name)
+    return out
+
+
+@dataclass
+class ParameterSpace:
+    """Named parameters of a model, their log10 start values and bounds.
+
+    Attributes:
+        names: ``"<kind>:<element>"``, e.g. ``"damping:elbow_flexion"``, length n.
+        x0, lower, upper: log10 of the start value and bounds, shape (n,).
+    """
+
+    names: list[str]
+    x0: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    _targets: list[tuple[str, int]] = field(default_factory=list, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def to_unit(self, x: np.ndarray) -> np.ndarray:
+        return (np.asarray(x) - self.lower) / (self.upper - self.lower)
+
+    def from_unit(self, z: np.ndarray) -> np.ndarray:
+        return self.lower + np.clip(z, 0.0, 1.0) * (self.upper - self.lower)
+
+    def physical(self, x: np.ndarray) -> np.ndarray:
+        """Physical values of the searched variables ``x`` (shape (n,)), in the units of :data:`BOUNDS`."""
+        x = np.asarray(x, float)
+        shift = np.array([10.0 ** lo if kind in ZERO_AT_LOWER else 0.0
+                          for (kind, _), lo in zip(self._targets, self.lower)])
+        return np.maximum(10.0 ** x - shift, 0.0)
+
+    def values(self, x: np.ndarray) -> dict[str, float]:
+        """Physical values ``{name: value}``."""
+        return dict(zip(self.names, map(float, self.physical(x))))
+
+    def apply(self, model: mujoco.MjModel, x: np.ndarray) -> mujoco.MjModel:
+        """A copy of ``model`` with the parameters ``x`` (log10, shape (n,)) written in."""
+        m = copy.copy(model)
+        for (kind, idx), v in zip(self._targets, self.physical(x)):
+            if kind == "damping":
+                m.dof_damping[idx] = v
+            elif kind == "limit_timeconst":
+                m.jnt_solref[idx, 0] = v
+            elif kind == "tendon_damping":
+                m.tendon_damping[idx] = v
+            elif kind == "tendon_stiffness":
+                m.tendon_stiffness[idx] = v
+            elif kind == "muscle_scale":
+                m.actuator_gainprm[idx, 2] = model.actuator_gainprm[idx, 2] * v
+                m.actuator_biasprm[idx, 2] = model.actuator_biasprm[idx, 2] * v
+        return m
+
+
+def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequence[str],
+                    bounds: dict[str, tuple[float, float]] = BOUNDS) -> ParameterSpace:
+    """The paper's parameter vector for ``model``: 2 per free DoF, 2 per muscle tendon, 1 per muscle."""
+    names, start, lo, hi, targets = [], [], [], [], []
+
+    def add(kind: str, element: str, idx: int, value: float) -> None:
+        b_lo, b_hi = bounds[kind]
+        names.append(f"{kind}:{element}")
+        if kind in ZERO_AT_LOWER:
+            start.append(np.log10(np.clip(value + b_lo, b_lo, b_hi + b_lo)))
+            hi.append(np.log10(b_hi + b_lo))
+        else:
+            start.append(np.log10(np.clip(value, b_lo, b_hi)))
+            hi.append(np.log10(b_hi))
+        lo.append(np.log10(b_lo))
+        targets.append((kind, idx))
+
+    for name in dofs:
+        j = model.joint(name).id
+        add("damping", name, int(model.jnt_dofadr[j]), float(model.dof_damping[model.jnt_dofadr[j]]))
+        add("limit_timeconst", name, j, float(model.jnt_solref[j, 0]))
+    for name in muscles:
+        a = model.actuator(name).id
+        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_TENDON:
+            raise ValueError(f"muscle {name!r} does not act through a tendon")
+        t = int(model.actuator_trnid[a, 0])
+        add("tendon_damping", name, t, float(model.tendon_damping[t]))
+        add("tendon_stiffness", name, t, float(model.tendon_stiffness[t]))
+    for name in muscles:
+        add("muscle_scale", name, model.actuator(name).id, 1.0)
+    return ParameterSpace(names, np.array(start), np.array(lo), np.array(hi), targets)
+
+
+class TrajectoryObjective:
+    """Squared joint error of candidate models against reference trajectories (see module doc).
+
+    Args:
+        model: the converted model.
+        space: its :class:`ParameterSpace`.
+        initial_states: shape (B, nstate), :func:`o2m.mujoco_sim.initial_state` of each trajectory.
+        controls: shape (B, T - 1, nu).
+        reference: OpenSim joint values, shape (B, T, len(dofs)), rad or m.
+        dofs: the joints compared.
+        penalty: weight of the squared log10 change of the parameters.
+        nthread: rollout threads (default: all cores).
+    """
+
+    def __init__(self, model: mujoco.MjModel, space: ParameterSpace, initial_states: np.ndarray,
+                 controls: np.ndarray, reference: np.ndarray, dofs: Sequence[str], *, penalty: float = PENALTY,
+                 nthread: int | None = None):
+        self.model, self.space = model, space
+        self.initial_states = np.asarray(initial_states, float)
+        self.controls = np.asarray(controls, float)
+        self.reference = np.asarray(reference, float)
+        self.dofs = list(dofs)
+        self.penalty = penalty
+        self.nthread = nthread
+        self.evaluations = 0
+        if self.reference.shape[:2] != (self.controls.shape[0], self.controls.shape[1] + 1):
+            raise ValueError(f"reference {self.reference.shape} does not match controls {self.controls.shape}")
+
+    def simulate(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint trajectories of candidates ``xs`` (P, n): shape (P, B, T, n_dofs), and diverged (P, B)."""
+        xs = np.atleast_2d(xs)
+        n_traj = self.controls.shape[0]
+        models = [self.space.apply(self.model, x) for x in xs]
+        batch_models = [m for m in models for _ in range(n_traj)]
+        init = np.tile(self.initial_states, (len(xs), 1))
+        ctrl = np.tile(self.controls, (len(xs), 1, 1))
+        tr = rollout(batch_models, init, ctrl, joint_names=self.dofs, nthread=self.nthread)
+        self.evaluations += len(xs)
+        shape = (len(xs), n_traj)
+        return tr.coordinates.reshape(*shape, *tr.coordinates.shape[1:]), tr.diverged.reshape(shape)
+
+    def joint_errors(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean squared error per candidate, trajectory and DoF, shape (P, B, n_dofs), and diverged (P, B)."""
+        q, diverged = self.simulate(xs)
+        with np.errstate(invalid="ignore", over="ignore"):
+            mse = np.mean((q - self.reference[None]) ** 2, axis=2)
+        mse[diverged] = DIVERGED_COST
+        return np.nan_to_num(mse, nan=DIVERGED_COST, posinf=DIVERGED_COST), diverged
+
+    def __call__(self, xs: np.ndarray) -> np.ndarray:
+        """Cost of each candidate, shape (P,)."""
+        xs = np.atleast_2d(xs)
+        mse, _ = self.joint_errors(xs)
+        return mse.sum(axis=(1, 2)) + self.penalty * np.sum((xs - self.space.x0) ** 2, axis=1)
+
+
+@dataclass
+class FitResult:
+    """The outcome of :func:`fit_cma`.
+
+    Attributes:
+        names: parameter names; x: best log10 values, shape (n,); x0: start values.
+        cost, cost0: best and starting objective values.
+        history: best cost after each generation, shape (generations,).
+        evaluations: objective evaluations (candidates); wall_time: seconds, summed over resumes.
+        settings: everything that produced the fit (seed, sigma, popsize, penalty, bounds, data).
+    """
+
+    names: list[str]
+    x: np.ndarray
+    x0: np.ndarray
+    cost: float
+    cost0: float
+    history: np.ndarray
+    evaluations: int
+    wall_time: float
+    settings: dict
+
+    def values(self, space: ParameterSpace | None = None) -> dict[str, float]:
+        """Physical values by name (``10**x`` unless ``space`` says how to map them)."""
+        if space is not None:
+            return space.values(self.x)
+        return {n: float(10.0 ** v) for n, v in zip(self.names, self.x)}
+
+
+def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.1, popsize: int | None = None,
+            generations: int = 100, checkpoint: str | os.PathLike[str] | None = None, progress: bool = True,
+            settings: dict | None = None) -> FitResult:
+    """Minimise ``objective`` with CMA-ES over the unit box of its parameter space.
+
+    Each generation's candidates are simulated together (:meth:`TrajectoryObjective.__call__`,
+    one batched rollout). With ``checkpoint``, the optimiser is pickled there after every
+    generation and a later call with the same file resumes from it. The best candidate ever
+    seen is returned; it is never worse than the start (which is evaluated first).
+    """
+    import cma
+    from tqdm.auto import tqdm
+
+    space = objective.space
+    settings = dict(settings or {}, seed=seed, sigma0=sigma0, penalty=objective.penalty,
+                    bounds={k: list(v) for k, v in BOUNDS.items()})
+    ckpt = Path(checkpoint) if checkpoint else None
+    state = None
+    if ckpt is not None and ckpt.exists():
+        with open(ckpt, "rb") as f:
+            state = pickle.load(f)
+        if state["names"] != space.names or state["seed"] != seed:
+            raise ValueError(f"checkpoint {ckpt} belongs to another fit (different parameters or seed); delete it")
+    t_start = time.perf_counter()
+    if state is None:
+        cost0 = float(objective(space.x0[None])[0])
+        opts = {"seed": seed + 1, "bounds": [0.0, 1.0], "verbose": -9}
+        if popsize:
+            opts["popsize"] = popsize
+        es = cma.CMAEvolutionStrategy(space.to_unit(space.x0), sigma0, opts)
+        state = {"names": space.names, "seed": seed, "es": es, "best_x": space.x0.copy(), "best": cost0,
+                 "cost0": cost0, "history": [], "wall": 0.0, "evals": 1}
+    es = state["es"]
+    bar = tqdm(total=generations, initial=len(state["history"]), desc="CMA-ES", unit="gen", disable=not progress)
+    while len(state["history"]) < generations:
+        zs = es.ask()
+        xs = np.array([space.from_unit(z) for z in zs])
+        costs = objective(xs)
+        es.tell(zs, costs.tolist())
+        state["evals"] += len(zs)
+        k = int(np.argmin(costs))
+        if costs[k] < state["best"]:
+            state["best"], state["best_x"] = float(costs[k]), xs[k].copy()
+        state["history"].append(state["best"])
+        state["wall"] += time.perf_counter() - t_start
+        t_start = time.perf_counter()
+        if ckpt is not None:
+            tmp = ckpt.with_suffix(".tmp")
+            with open(tmp, "wb") as f:
+                pickle.dump(state, f)
+            os.replace(tmp, ckpt)
+        bar.set_postfix(best=f"{state['best']:.4g}", start=f"{state['cost0']:.4g}")
+        bar.update()
+    bar.close()
+    state["wall"] += time.perf_counter() - t_start
+    return FitResult(space.names, state["best_x"], space.x0.copy(), state["best"], state["cost0"],
+                     np.array(state["history"]), state["evals"], state["wall"],
+                     dict(settings, generations=generations, popsize=es.popsize))
+
+
+def save_fit(path: str | os.PathLike[str], result: FitResult, space: ParameterSpace | None = None) -> Path:
+    """Write a fit as JSON (names, searched log10 variables, physical values when ``space`` is given,
+    costs, history, settings)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc = {"names": result.names, "x": result.x.tolist(), "x0": result.x0.tolist(),
+           "values": result.values(space) if space is not None else None,
+           "cost": result.cost, "cost0": result.cost0, "history": result.history.tolist(),
+           "evaluations": result.evaluations, "wall_time_s": result.wall_time, "settings": result.settings}
+    path.write_text(json.dumps(doc, indent=1) + "\n")
+    return path
+
+
+def load_fit(path: str | os.PathLike[str]) -> FitResult:
+    """Read a fit written by :func:`save_fit`."""
+    d = json.loads(Path(path).read_text())
+    return FitResult(d["names"], np.array(d["x"]), np.array(d["x0"]), d["cost"], d["cost0"], np.array(d["history"]),
+                     d["evaluations"], d["wall_time_s"], d["settings"])

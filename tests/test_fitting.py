@@ -1,0 +1,118 @@
+"""CMA-ES parameter fitting and corrective controls, on small models (seconds)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from o2m.activations import generate_activations
+from o2m.corrections import bspline_basis, fit_corrections
+from o2m.fitting import (TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit)
+from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout
+
+PENDULUM = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="link" pos="0 0 1">
+      <joint name="swing" type="hinge" axis="0 1 0" damping="{damping}"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1"/>
+      <site name="tip" pos="0.5 0 0"/>
+    </body>
+    <body name="follower" pos="0 0 2">
+      <joint name="follow" type="hinge" axis="0 1 0"/>
+      <geom type="sphere" size="0.05" mass="0.1"/>
+    </body>
+    <site name="anchor" pos="0.3 0 1.4"/>
+  </worldbody>
+  <tendon><spatial name="lifter"><site site="anchor"/><site site="tip"/></spatial></tendon>
+  <equality><joint joint1="follow" joint2="swing" polycoef="0 0.5 0 0 0"/></equality>
+  <actuator><muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/></actuator>
+</mujoco>
+"""
+
+
+def pendulum(damping: float) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(PENDULUM.format(damping=damping))
+
+
+def _setup(true_damping: float, start_damping: float, n: int = 4, steps: int = 250):
+    truth, model = pendulum(true_damping), pendulum(start_damping)
+    sets = generate_activations(["lifter"], n, seed=1, p_active=1.0)
+    ctrl = controls_from_excitations(model, ["lifter"], sets.values[:, :steps])
+    init = np.stack([initial_state(model, {"swing": a}) for a in np.linspace(-0.5, 0.5, n)])
+    ref = rollout(truth, init, ctrl, joint_names=["swing"]).coordinates
+    return model, init, ctrl, ref
+
+
+def test_free_coordinates_skip_equality_driven_joints():
+    assert free_coordinates(pendulum(0.1), ["swing", "follow", "missing"]) == ["swing"]
+
+
+def test_parameter_space_has_the_papers_layout():
+    space = parameter_space(pendulum(0.1), ["swing"], ["lifter"])
+    assert space.names == ["damping:swing", "limit_timeconst:swing", "tendon_damping:lifter",
+                           "tendon_stiffness:lifter", "muscle_scale:lifter"]
+    assert np.all(space.lower <= space.x0) and np.all(space.x0 <= space.upper)
+    m = space.apply(pendulum(0.1), space.x0 + np.array([0, 0, 0, 0, np.log10(2)]))
+    assert m.actuator_gainprm[0, 2] == pytest.approx(80) and m.dof_damping[0] == pytest.approx(0.1)
+
+
+def test_objective_is_zero_for_identical_trajectories():
+    model, init, ctrl, ref = _setup(0.3, 0.3)
+    space = parameter_space(model, ["swing"], ["lifter"])
+    obj = TrajectoryObjective(model, space, init, ctrl, ref, ["swing"])
+    assert obj(space.x0[None])[0] == 0.0
+    other = space.x0.copy()
+    other[0] += 0.5
+    assert obj(other[None])[0] > 1e-6
+
+
+def test_fit_recovers_a_known_damping(tmp_path):
+    model, init, ctrl, ref = _setup(0.5, 0.05)
+    space = parameter_space(model, ["swing"], [])
+    obj = TrajectoryObjective(model, space, init, ctrl, ref, ["swing"], penalty=0.0)
+    fit = fit_cma(obj, seed=0, sigma0=0.2, generations=40, checkpoint=tmp_path / "ckpt.pkl", progress=False)
+    assert fit.cost < 1e-3 * fit.cost0
+    assert fit.values(space)["damping:swing"] == pytest.approx(0.5, rel=0.05)
+    assert np.all(np.diff(fit.history) <= 0)
+    # resuming from the checkpoint continues, not restarts
+    more = fit_cma(obj, seed=0, sigma0=0.2, generations=45, checkpoint=tmp_path / "ckpt.pkl", progress=False)
+    assert len(more.history) == 45 and more.cost <= fit.cost and more.cost0 == fit.cost0
+    saved = load_fit(save_fit(tmp_path / "fit.json", more))
+    assert np.array_equal(saved.x, more.x) and saved.names == more.names
+
+
+def test_bspline_basis_is_a_partition_of_unity_with_10_hz_knots():
+    t = np.arange(500) * 0.002
+    b = bspline_basis(t)
+    assert b.shape == (500, 13)
+    assert np.allclose(b.sum(axis=1), 1.0)
+    assert np.all((b > 0).sum(axis=1) <= 4)
+
+
+def test_corrections_against_the_model_itself_stay_zero():
+    model, init, ctrl, _ = _setup(0.3, 0.3, n=1)
+    sets = generate_activations(["lifter"], 1, seed=1, p_active=1.0)
+    exc = sets.values[0, :250]
+    ref = rollout(model, init, controls_from_excitations(model, ["lifter"], exc)[None],
+                  joint_names=["swing"]).coordinates[0]
+    res = fit_corrections(model, init[0], exc, ["lifter"], ref, ["swing"], generations=3, seed=0)
+    assert res.cost0 == 0.0 and np.abs(res.correction).max() < 1e-3
+
+
+def test_corrections_reduce_the_error_of_a_weaker_model():
+    truth = pendulum(0.3)
+    weak = pendulum(0.3)
+    weak.actuator_gainprm[0, 2] *= 0.7
+    weak.actuator_biasprm[0, 2] *= 0.7
+    sets = generate_activations(["lifter"], 1, seed=2, p_active=1.0)
+    exc = 0.6 * sets.values[0, :250]
+    init = initial_state(truth, {"swing": 0.2})
+    ref = rollout(truth, init, controls_from_excitations(truth, ["lifter"], exc)[None],
+                  joint_names=["swing"]).coordinates[0]
+    res = fit_corrections(weak, init, exc, ["lifter"], ref, ["swing"], generations=8, seed=0, penalty=1e-3)
+    assert res.cost < 0.3 * res.cost0
+    assert res.joint_mae[0] < res.joint_mae0[0]
+    assert np.all(res.excitations >= 0) and np.all(res.excitations <= 1)
