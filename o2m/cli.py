@@ -96,6 +96,75 @@ def cmd_dataset(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_paper(a: argparse.Namespace) -> int:
+    """The whole paper: dataset (stored or regenerated), conversion, fit, corrections, speed, figures."""
+    import json
+
+    from .dataset import load_dataset, make_dataset
+    from .figures import make_figures
+    from .paper import FULL, QUICK, run_paper
+    from .speed import measure_speed
+
+    data = Path(a.data)
+    out = Path(a.out)
+    quick = a.quick
+    if a.regenerate_opensim:
+        if quick:
+            data = out / "quick-data"
+        print(f"[1/4] regenerating OpenSim references into {data} ({4 if quick else a.sets} sets)")
+        make_dataset(data, n_sets=4 if quick else a.sets, seed=a.seed, timeout=a.timeout)
+    else:
+        print(f"[1/4] using the stored OpenSim references in {data}")
+    ds = load_dataset(data)
+    print(f"      {len(ds.ok)} sets, {int(ds.ok.sum())} succeeded in OpenSim, failures: "
+          + ("; ".join(f"set {i} {st}: {why[:80]}" for i, st, why in ds.failures()) or "none"))
+    results = out / "quick" / "results" if quick else data / "results"
+    figures = out / "quick" / "figures" if quick else Path(a.figures)
+    print(f"[2/4] converting, fitting parameters ({'quick' if quick else 'full'} mode) and corrective controls")
+    summary = run_paper(data, settings=QUICK if quick else FULL, model_dir=out / "paper", results_dir=results,
+                        refit=a.refit or quick)
+    print("[3/4] timing one 1-s simulation in OpenSim and in MuJoCo")
+    speed = measure_speed(str(data), n_sets=1 if quick else 5, model_dir=str(out / "paper"))
+    speed_file = results.parent / "speed.json"
+    speed_file.write_text(json.dumps(speed, indent=1) + "\n")
+    print(f"[4/4] figures -> {figures}")
+    written = make_figures(results, figures, speed_file=speed_file)
+    e = summary["mean_error_rad"]
+    print()
+    print(f"Mean absolute joint error on {summary['n_test']} test sets (rad): converted {e['converted']:.4f}, "
+          f"fitted {e['fitted']:.4f}, with corrections {e['corrected']:.4f}")
+    for d, v in summary["per_joint_error_rad"].items():
+        print(f"  {d:15s} {v['converted']:.4f} -> {v['fitted']:.4f} -> {v['corrected']:.4f}")
+    print(f"Mean absolute correction: {summary['mean_abs_correction']:.4f}")
+    f = summary["fit"]
+    print(f"CMA-ES: cost {f['cost0']:.4g} -> {f['cost']:.4g} in {f['generations']} generations, "
+          f"{f['evaluations']} candidates, {f['wall_time_s']:.0f} s")
+    print(f"Speed: OpenSim {speed['opensim_median_s']:.2f} s, MuJoCo {speed['mujoco_median_s']:.4f} s per 1-s "
+          f"simulation: {speed['ratio']:.0f}x; batched rollouts {speed['rollout_per_s']:.0f} simulations/s")
+    print(f"{len(written)} figure files in {figures}")
+    return 0
+
+
+def cmd_figures(a: argparse.Namespace) -> int:
+    from .figures import make_figures
+
+    written = make_figures(a.results, a.figures)
+    print("\n".join(map(str, written)) or "no results found")
+    return 0 if written else 1
+
+
+def cmd_speed(a: argparse.Namespace) -> int:
+    import json
+
+    from .speed import measure_speed
+
+    speed = measure_speed(a.data, n_sets=a.sets)
+    print(json.dumps({k: v for k, v in speed.items() if not isinstance(v, list)}, indent=1))
+    if a.save:
+        Path(a.save).write_text(json.dumps(speed, indent=1) + "\n")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="o2m", description="Convert OpenSim models to MuJoCo and measure their fidelity.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -128,6 +197,27 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit per OpenSim run, s")
     d.add_argument("--workers", type=int, default=None, help="parallel OpenSim processes (default: all cores)")
     d.set_defaults(func=cmd_dataset)
+    pp = sub.add_parser("paper", help="the whole paper: references, conversion, fitting, corrections, speed, figures")
+    pp.add_argument("--quick", action="store_true", help="small budgets (minutes); results go to OUT/quick/")
+    pp.add_argument("--data", default="data/mobl_arms", help="dataset folder (default: data/mobl_arms)")
+    pp.add_argument("--out", default="out", help="scratch folder for converted models (default: out/)")
+    pp.add_argument("--figures", default="figures", help="figure folder in full mode (default: figures/)")
+    pp.add_argument("--regenerate-opensim", action="store_true",
+                    help="rerun the OpenSim reference simulations instead of using the stored ones")
+    pp.add_argument("--refit", action="store_true", help="refit even if DATA/results/parameters.json exists")
+    pp.add_argument("--sets", type=int, default=100)
+    pp.add_argument("--seed", type=int, default=2020)
+    pp.add_argument("--timeout", type=float, default=600.0)
+    pp.set_defaults(func=cmd_paper)
+    fg = sub.add_parser("figures", help="redraw the figures from stored results")
+    fg.add_argument("--results", default="data/mobl_arms/results")
+    fg.add_argument("--figures", default="figures")
+    fg.set_defaults(func=cmd_figures)
+    sp = sub.add_parser("speed", help="benchmark: one 1-s simulation in OpenSim and in MuJoCo")
+    sp.add_argument("--data", default="data/mobl_arms")
+    sp.add_argument("--sets", type=int, default=5)
+    sp.add_argument("--save", default=None, help="write the measurements to this JSON file")
+    sp.set_defaults(func=cmd_speed)
     return p
 
 

@@ -56,7 +56,8 @@ class OpenSimRun:
         activations: muscle activations, shape (T, n_muscles); NaN after a failure.
         coordinate_names, muscle_names: column labels.
         t_reached: last time reached, seconds.
-        wall_time: wall-clock seconds the run took.
+        wall_time: wall-clock seconds the run took (loading the model included).
+        integration_time: wall-clock seconds spent integrating (from the Manager's start).
     """
 
     status: str
@@ -69,6 +70,7 @@ class OpenSimRun:
     muscle_names: list[str] = field(default_factory=list)
     t_reached: float = 0.0
     wall_time: float = 0.0
+    integration_time: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -77,14 +79,16 @@ class OpenSimRun:
     def to_npz(self, path: str | os.PathLike[str]) -> None:
         np.savez(path, status=self.status, reason=self.reason, times=self.times, coordinates=self.coordinates,
                  speeds=self.speeds, activations=self.activations, coordinate_names=np.array(self.coordinate_names),
-                 muscle_names=np.array(self.muscle_names), t_reached=self.t_reached, wall_time=self.wall_time)
+                 muscle_names=np.array(self.muscle_names), t_reached=self.t_reached, wall_time=self.wall_time,
+                 integration_time=self.integration_time)
 
     @classmethod
     def from_npz(cls, path: str | os.PathLike[str]) -> OpenSimRun:
         with np.load(path) as z:
             return cls(str(z["status"]), str(z["reason"]), z["times"], z["coordinates"], z["speeds"],
                        z["activations"], [str(s) for s in z["coordinate_names"]],
-                       [str(s) for s in z["muscle_names"]], float(z["t_reached"]), float(z["wall_time"]))
+                       [str(s) for s in z["muscle_names"]], float(z["t_reached"]), float(z["wall_time"]),
+                       float(z["integration_time"]) if "integration_time" in z.files else float("nan"))
 
     @classmethod
     def empty(cls, status: str, reason: str, times: np.ndarray, n_coordinates: int = 0, n_muscles: int = 0,
@@ -192,9 +196,12 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
         act[k] = [m.getActivation(s) for m in muscle_objs]
         return bool(np.isfinite(q[k]).all() and np.isfinite(u[k]).all())
 
+    t_integrate = [float("nan")]
+
     def result(status: str, reason: str, t_reached: float) -> OpenSimRun:
-        return OpenSimRun(status, reason, times, q, u, act, coord_names, muscle_names, t_reached,
-                          time.perf_counter() - t0)
+        now = time.perf_counter()
+        return OpenSimRun(status, reason, times, q, u, act, coord_names, muscle_names, t_reached, now - t0,
+                          now - t_integrate[0])
 
     model.realizeDynamics(state)
     if not record(0, state):
@@ -207,6 +214,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
     manager.setIntegratorMinimumStepSize(settings.min_step)
     manager.setIntegratorMaximumStepSize(settings.max_step)
     manager.setRecordStatesTrajectory(False) if hasattr(manager, "setRecordStatesTrajectory") else None
+    t_integrate[0] = time.perf_counter()
     manager.initialize(state)
     for k in range(1, n):
         if wall_limit is not None and time.perf_counter() - t0 > wall_limit:

@@ -1,0 +1,185 @@
+"""The paper's experiment on MoBL-ARMS, end to end: convert, simulate, fit, correct, measure.
+
+:func:`load_experiment` converts the bundled MoBL-ARMS model (no wrap objects, wrist locked; the
+model the OpenSim references were computed with) and lays the stored dataset out for MuJoCo:
+initial states, controls and OpenSim joint trajectories of every successful set.
+:func:`run_paper` then fits the parameters on the training sets (:mod:`o2m.fitting`), fits
+corrective controls on the test sets (:mod:`o2m.corrections`) and writes everything the figures
+need to ``<data>/results/``:
+
+``parameters.json``   the CMA-ES fit (:func:`o2m.fitting.save_fit`)
+``checkpoint.pkl``    CMA-ES state, to resume an interrupted fit (not kept in git)
+``results.npz``       per test set and DoF, mean absolute joint error (rad) of the converted,
+                      fitted and corrected model; per test set and muscle, mean absolute
+                      correction; joint trajectories of the first test sets for the overlay
+``summary.json``      the headline numbers and the settings (quick or full)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from o2m.dataset import Dataset, load_dataset
+from o2m.fitting import FitResult, TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit
+from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout
+
+__all__ = ["Experiment", "FULL", "QUICK", "Settings", "joint_mae", "load_experiment", "run_paper"]
+
+DATA_DIR = Path("data/mobl_arms")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Budgets of one run of the paper's pipeline."""
+
+    generations: int
+    popsize: int | None
+    train_sets: int | None  # None: all training sets
+    test_sets: int | None
+    correction_generations: int
+    overlay_sets: int = 3
+    seed: int = 0
+
+
+#: The budget of the stored result: 30 generations of 12 candidates, each candidate simulated on all
+#: training sets (about 20 minutes on 2 cores); corrections with 6 generations per spline block.
+FULL = Settings(generations=30, popsize=12, train_sets=None, test_sets=None, correction_generations=6)
+QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2)
+
+
+@dataclass
+class Experiment:
+    """The dataset laid out for MuJoCo.
+
+    Attributes:
+        model: the converted MoBL-ARMS model; xml: its file.
+        dataset: the stored OpenSim dataset.
+        dofs: the free DoFs compared (rad).
+        muscles: muscle names, in excitation column order.
+        init: shape (n_sets, nstate); controls: (n_sets, T - 1, nu); reference: (n_sets, T, n_dofs).
+        Rows of failed sets are NaN.
+    """
+
+    model: mujoco.MjModel
+    xml: Path
+    dataset: Dataset
+    dofs: list[str]
+    muscles: list[str]
+    init: np.ndarray
+    controls: np.ndarray
+    reference: np.ndarray
+
+
+def load_experiment(data_dir: str | os.PathLike[str] = DATA_DIR, model_dir: str | os.PathLike[str] = "out/paper",
+                    *, reconvert: bool = False) -> Experiment:
+    """Convert the dataset's model into ``model_dir`` (unless already there) and lay out the data."""
+    from o2m import models
+    from o2m.convert import convert
+
+    ds = load_dataset(data_dir)
+    fetched = models.fetch_model_with_geometry(ds.meta["model"], progress=False)
+    if models.sha256_of(fetched.osim) != ds.meta["model_sha256"]:
+        raise ValueError(f"the dataset was made with another version of {ds.meta['model']}")
+    xml = Path(model_dir) / (fetched.osim.stem + ".xml")
+    if reconvert or not xml.exists():
+        xml = convert(fetched.osim, model_dir, geometry_dirs=[fetched.geometry_dir]).xml
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    dofs = free_coordinates(model, ds.coordinate_names)
+    muscles = list(ds.activations.muscles)
+    cols = [ds.coordinate_names.index(d) for d in dofs]
+    n, n_t = len(ds.status), len(ds.times)
+    init = np.full((n, mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)), np.nan)
+    for i in np.flatnonzero(ds.ok):
+        init[i] = initial_state(model, dict(zip(ds.coordinate_names, ds.coordinates[i, 0])),
+                                speeds=dict(zip(ds.coordinate_names, ds.speeds[i, 0])),
+                                activations=dict(zip(ds.muscle_names, ds.opensim_activations[i, 0])))
+    controls = controls_from_excitations(model, muscles, ds.activations.values)
+    reference = ds.coordinates[:, :, cols]
+    assert reference.shape == (n, n_t, len(dofs))
+    return Experiment(model, xml, ds, dofs, muscles, init, controls, reference)
+
+
+def joint_mae(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Mean absolute joint error of ``model`` per set and DoF, shape (len(sets), n_dofs), rad; and the trajectories."""
+    tr = rollout(model, exp.init[sets], exp.controls[sets], joint_names=exp.dofs)
+    err = np.mean(np.abs(tr.coordinates - exp.reference[sets]), axis=1)
+    err[tr.diverged] = np.nan
+    return err, tr.coordinates
+
+
+def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings = FULL,
+              model_dir: str | os.PathLike[str] = "out/paper", results_dir: str | os.PathLike[str] | None = None,
+              refit: bool = False, progress: bool = True) -> dict:
+    """Fit parameters and corrections and write ``results/`` (see the module docstring); returns the summary."""
+    from tqdm.auto import tqdm
+
+    from o2m.corrections import fit_corrections
+
+    exp = load_experiment(data_dir, model_dir)
+    out = Path(results_dir) if results_dir else Path(data_dir) / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    train = exp.dataset.train[: settings.train_sets] if settings.train_sets else exp.dataset.train
+    test = exp.dataset.test[: settings.test_sets] if settings.test_sets else exp.dataset.test
+    space = parameter_space(exp.model, exp.dofs, exp.muscles)
+    objective = TrajectoryObjective(exp.model, space, exp.init[train], exp.controls[train], exp.reference[train],
+                                    exp.dofs)
+    fit_file = out / "parameters.json"
+    t0 = time.perf_counter()
+    if fit_file.exists() and not refit:
+        fit = load_fit(fit_file)
+        if fit.names != space.names:
+            raise ValueError(f"{fit_file} has other parameters than this model; rerun with refit=True")
+    else:
+        fit = fit_cma(objective, seed=settings.seed, generations=settings.generations, popsize=settings.popsize,
+                      checkpoint=out / "checkpoint.pkl", progress=progress,
+                      settings={"train_sets": train, "data": str(data_dir), "xml": exp.xml.name})
+        save_fit(fit_file, fit, space)
+    fit_seconds = time.perf_counter() - t0
+    fitted = space.apply(exp.model, fit.x)
+
+    err_converted, q_converted = joint_mae(exp, exp.model, test)
+    err_fitted, q_fitted = joint_mae(exp, fitted, test)
+    corr_err, corr_size, q_corrected = [], [], []
+    t1 = time.perf_counter()
+    for i in tqdm(test, desc="corrections", unit="set", disable=not progress):
+        r = fit_corrections(fitted, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i],
+                            exp.dofs, generations=settings.correction_generations, seed=settings.seed + i)
+        corr_err.append(np.mean(np.abs(r.coordinates - exp.reference[i]), axis=0))
+        corr_size.append(np.mean(np.abs(r.correction), axis=0))
+        q_corrected.append(r.coordinates)
+    corr_seconds = time.perf_counter() - t1
+    k = min(settings.overlay_sets, len(test))
+    np.savez_compressed(
+        out / "results.npz", dofs=np.array(exp.dofs), muscles=np.array(exp.muscles), test=np.array(test),
+        times=exp.dataset.times, err_converted=err_converted, err_fitted=err_fitted, err_corrected=np.array(corr_err),
+        correction_mae=np.array(corr_size), overlay_sets=np.array(test[:k]), overlay_opensim=exp.reference[test[:k]],
+        overlay_converted=q_converted[:k], overlay_fitted=q_fitted[:k], overlay_corrected=np.array(q_corrected[:k]))
+    summary = {
+        "settings": settings.__dict__, "n_train": len(train), "n_test": len(test),
+        "mean_error_rad": {"converted": float(np.nanmean(err_converted)), "fitted": float(np.nanmean(err_fitted)),
+                           "corrected": float(np.nanmean(corr_err))},
+        "per_joint_error_rad": {d: {"converted": float(np.nanmean(err_converted[:, j])),
+                                    "fitted": float(np.nanmean(err_fitted[:, j])),
+                                    "corrected": float(np.nanmean(np.array(corr_err)[:, j]))}
+                                for j, d in enumerate(exp.dofs)},
+        "diverged_test_sets": {"converted": int(np.isnan(err_converted).any(axis=1).sum()),
+                               "fitted": int(np.isnan(err_fitted).any(axis=1).sum())},
+        "mean_abs_correction": float(np.mean(corr_size)),
+        "fit": {"cost0": fit.cost0, "cost": fit.cost, "evaluations": fit.evaluations, "wall_time_s": fit.wall_time,
+                "generations": len(fit.history)},
+        "seconds": {"fit": fit_seconds, "corrections": corr_seconds},
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    return summary
+
+
+def fitted_model(exp: Experiment, fit: FitResult) -> mujoco.MjModel:
+    """The converted model with a fit's parameters written in."""
+    return parameter_space(exp.model, exp.dofs, exp.muscles).apply(exp.model, fit.x)
