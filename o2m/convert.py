@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
+from . import forces
 from .document import load_document
 from .errors import O2MError
 from .mjcf import Approximation, JointRecord, MjcfBuilder, add_geometry
@@ -116,6 +117,7 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
     add_paths(builder, paths, read_wrap_objects(reader))
+    force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
     muscle_skipped = _fit_mechanics(result, osim) if fit_mechanics and any(
         p.owner_type in MUSCLE_TYPES for p in paths) else []
     search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs or []]
@@ -131,15 +133,17 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
         except Exception as exc:
             raise O2MError(f"{osim}: MuJoCo could not compile the converted model: {exc}") from exc
         _set_length_ranges(spec, model, builder)
+        forces.fit_ligaments(force_conv, spec, model, builder)
         spec.add_key(name="default-pose", qpos=model.qpos0.copy())
         spec.compile()
         xml_path = stage / f"{stem}.xml"
-        xml_text = builder.restore_precision(_relative_meshdir(spec.to_xml()))
+        xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
         xml_path.write_text(_default_pose(xml_text, model.qpos0))
         try:  # the written file, as a user will load it
-            mujoco.MjModel.from_xml_path(str(xml_path))
+            written = mujoco.MjModel.from_xml_path(str(xml_path))
         except Exception as exc:
             raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
+        forces.measure(force_conv, written, osim, builder)
         warnings = [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
         report = ConversionReport(
             model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
@@ -147,9 +151,10 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
             counts={"bodies": len(skel.bodies), "joints": len(skel.joints), "coordinates": len(skel.coordinates),
                     "couplers": len(skel.couplers), "markers": len(skel.markers),
                     "mujoco joints": model.njnt, "mujoco equalities": model.neq, "meshes": model.nmesh,
-                    "geoms": model.ngeom},
+                    "geoms": model.ngeom, "other forces": force_conv.converted},
             joints=result.joints, approximations=result.approximations,
-            skipped=skel.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings)
+            skipped=[s for s in skel.skipped if (s.element, s.name) not in force_conv.handled]
+            + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings)
         report.write(stage, stem)
         _publish(stage, out_dir, stem)
     return Conversion(out_dir / f"{stem}.xml", report)

@@ -278,7 +278,7 @@ class TendonBuilder:
             act = self.spec.add_actuator(name=path.owner, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=path.owner)
             fmax = float(path.element.findtext("max_isometric_force") or 1000.0)
             act.set_to_muscle(timeconst=[0.01, 0.04], tausmooth=0.0, force=fmax)
-        else:
+        elif path.owner_type != "Ligament":  # a ligament's spring is added by o2m.forces
             self.b.result.notes.append(f"{path.owner_type} '{path.owner}': tendon only (no actuator yet)")
 
 
