@@ -1,7 +1,7 @@
 """Fitting a converted model's dynamics to OpenSim trajectories with CMA-ES.
 
 The parameter vector is the paper's (Ikkala & Hämäläinen 2020): for each free degree of freedom
-its joint damping and the softness of its limit, for each tendon its damping and stiffness, and
+its joint damping and the softness of its limit (the stiffness of its CoordinateLimitForce tendons), for each tendon its damping and stiffness, and
 for each muscle a strength scale (160 parameters for MoBL-ARMS: 5 free DoFs, 50 muscles).
 
 Parameters are searched in log10 space, within the bounds of :data:`BOUNDS`:
@@ -10,7 +10,10 @@ Parameters are searched in log10 space, within the bounds of :data:`BOUNDS`:
 parameter              MuJoCo field                bounds
 =====================  ==========================  =========================================
 ``damping``            ``dof_damping``             1e-3 .. 10 N·m·s/rad (m: N·s/m)
-``limit_timeconst``    ``jnt_solref[:, 0]``        0.004 .. 0.5 s (a softer limit when larger)
+``limit_scale``        ``tendon_stiffness[poly]``  0.1 .. 10 (x the stiffness of the DoF's
+                       of its limit tendons        CoordinateLimitForce tendons; smaller is softer)
+``limit_timeconst``    ``jnt_solref[:, 0]``        0.004 .. 0.5 s (a softer limit when larger;
+                                                   for a DoF without limit tendons)
 ``tendon_damping``     ``tendon_damping``          1e-3 .. 100 N·s/m
 ``tendon_stiffness``   ``tendon_stiffness``        1e-2 .. 1e4 N/m (rest length: qpos0 length)
 ``muscle_scale``       ``actuator_gainprm[:, 2]``  0.5 .. 2 (x the converted max force)
@@ -49,6 +52,7 @@ __all__ = ["BOUNDS", "DIVERGED_COST", "FitResult", "PENALTY", "ParameterSpace", 
 
 BOUNDS: dict[str, tuple[float, float]] = {
     "damping": (1e-3, 10.0),
+    "limit_scale": (0.1, 10.0),
     "limit_timeconst": (0.004, 0.5),
     "tendon_damping": (1e-3, 100.0),
     "tendon_stiffness": (1e-2, 1e4),
@@ -75,6 +79,18 @@ def free_coordinates(model: mujoco.MjModel, coordinate_names: Sequence[str]) -> 
     return out
 
 
+def limit_tendons(model: mujoco.MjModel, joint: str) -> list[int]:
+    """Fixed tendons on ``joint`` alone with a spring: o2m's CoordinateLimitForce tendons."""
+    j = model.joint(joint).id
+    out = []
+    for t in range(model.ntendon):
+        adr, num = model.tendon_adr[t], model.tendon_num[t]
+        if num == 1 and int(model.wrap_type[adr]) == int(mujoco.mjtWrap.mjWRAP_JOINT) and model.wrap_objid[adr] == j \
+                and (model.tendon_stiffness[t] != 0 or np.any(model.tendon_stiffnesspoly[t] != 0)):
+            out.append(t)
+    return out
+
+
 @dataclass
 class ParameterSpace:
     """Named parameters of a model, their log10 start values and bounds.
@@ -88,7 +104,7 @@ class ParameterSpace:
     x0: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
-    _targets: list[tuple[str, int]] = field(default_factory=list, repr=False)
+    _targets: list[tuple[str, int | tuple[int, ...]]] = field(default_factory=list, repr=False)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -116,6 +132,10 @@ class ParameterSpace:
         for (kind, idx), v in zip(self._targets, self.physical(x)):
             if kind == "damping":
                 m.dof_damping[idx] = v
+            elif kind == "limit_scale":
+                for t in idx:
+                    m.tendon_stiffness[t] = model.tendon_stiffness[t] * v
+                    m.tendon_stiffnesspoly[t] = model.tendon_stiffnesspoly[t] * v
             elif kind == "limit_timeconst":
                 m.jnt_solref[idx, 0] = v
             elif kind == "tendon_damping":
@@ -133,7 +153,7 @@ def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequenc
     """The paper's parameter vector for ``model``: 2 per free DoF, 2 per muscle tendon, 1 per muscle."""
     names, start, lo, hi, targets = [], [], [], [], []
 
-    def add(kind: str, element: str, idx: int, value: float) -> None:
+    def add(kind: str, element: str, idx, value: float) -> None:
         b_lo, b_hi = bounds[kind]
         names.append(f"{kind}:{element}")
         if kind in ZERO_AT_LOWER:
@@ -148,7 +168,11 @@ def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequenc
     for name in dofs:
         j = model.joint(name).id
         add("damping", name, int(model.jnt_dofadr[j]), float(model.dof_damping[model.jnt_dofadr[j]]))
-        add("limit_timeconst", name, j, float(model.jnt_solref[j, 0]))
+        limits = limit_tendons(model, name)
+        if limits:
+            add("limit_scale", name, tuple(limits), 1.0)
+        else:
+            add("limit_timeconst", name, j, float(model.jnt_solref[j, 0]))
     for name in muscles:
         a = model.actuator(name).id
         if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_TENDON:

@@ -79,7 +79,7 @@ class Experiment:
 
 def load_experiment(data_dir: str | os.PathLike[str] = DATA_DIR, model_dir: str | os.PathLike[str] = "out/paper",
                     *, reconvert: bool = False) -> Experiment:
-    """Convert the dataset's model into ``model_dir`` (unless already there) and lay out the data."""
+    """Convert the dataset's model into ``model_dir`` (unless an up-to-date conversion is there) and lay out the data."""
     from o2m import models
     from o2m.convert import convert
 
@@ -88,7 +88,8 @@ def load_experiment(data_dir: str | os.PathLike[str] = DATA_DIR, model_dir: str 
     if models.sha256_of(fetched.osim) != ds.meta["model_sha256"]:
         raise ValueError(f"the dataset was made with another version of {ds.meta['model']}")
     xml = Path(model_dir) / (fetched.osim.stem + ".xml")
-    if reconvert or not xml.exists():
+    newest_source = max(p.stat().st_mtime for p in Path(__file__).parent.glob("*.py"))
+    if reconvert or not xml.exists() or xml.stat().st_mtime < newest_source:
         xml = convert(fetched.osim, model_dir, geometry_dirs=[fetched.geometry_dir]).xml
     model = mujoco.MjModel.from_xml_path(str(xml))
     dofs = free_coordinates(model, ds.coordinate_names)

@@ -1,0 +1,408 @@
+"""Write the workbook's notebooks (``notebooks/*.ipynb``) from the cell lists below.
+
+The notebooks are thin: every computation is an ``o2m`` call. Editing them here keeps them
+reviewable as code; run ``python tools/build_notebooks.py`` and commit the .ipynb files (stored
+without outputs). ``tests/test_notebooks.py`` executes them in quick mode.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import nbformat
+from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+
+HERE = Path(__file__).resolve().parents[1] / "notebooks"
+
+PARAMETERS = '''# Parameters. Quick mode (set O2M_QUICK=1, as CI does) uses small budgets and finishes in a
+# minute or two; full mode reproduces the stored results.
+import os
+from pathlib import Path
+
+QUICK = os.environ.get("O2M_QUICK", "0") == "1"
+ROOT = Path.cwd().parent if Path.cwd().name == "notebooks" else Path.cwd()
+DATA = ROOT / "data" / "mobl_arms"
+OUT = ROOT / "out" / "notebooks"
+OUT.mkdir(parents=True, exist_ok=True)
+print("quick mode" if QUICK else "full mode", "| data:", DATA)'''
+
+
+def md(text: str):
+    return new_markdown_cell(text.strip())
+
+
+def code(text: str):
+    return new_code_cell(text.strip())
+
+
+NOTEBOOKS: dict[str, list] = {}
+
+NOTEBOOKS["01_conversion.ipynb"] = [
+    md("""
+# 1. Converting MoBL-ARMS from OpenSim to MuJoCo
+
+The MoBL-ARMS upper-limb model (Saul et al. 2015) has a fixed torso, a shoulder whose clavicle and
+scapula follow the humerus through coupled coordinates, an elbow, a forearm, and 50 muscles. This
+notebook converts it with `o2m.convert`, reads the conversion report (what was approximated, with
+its measured error), checks the result against OpenSim, and shows the model in 3-D.
+
+Conventions: OpenSim is Y-up, MuJoCo Z-up (o2m rotates +90° about x); lengths in metres, angles in
+radians, forces in newtons. A MuJoCo body has the name and frame of its OpenSim body; a MuJoCo
+joint named as an OpenSim coordinate has its value.
+"""),
+    code(PARAMETERS),
+    md("""
+## Fetch and convert
+
+`fetch_model_with_geometry` copies the model and its meshes into a local cache, checking every
+file's sha256. We use the *testing* model without wrap objects (wrist flexion and deviation
+locked): it is the model the OpenSim reference simulations use, because OpenSim cannot simulate
+the wrapped model in reasonable time.
+"""),
+    code('''
+from o2m import models
+from o2m.convert import convert
+
+fetched = models.fetch_model_with_geometry("mobl_arms_no_wrap", progress=False)
+result = convert(fetched.osim, OUT / "mobl_arms", geometry_dirs=[fetched.geometry_dir])
+print(result.xml)
+print(f"converted in {result.report.seconds:.1f} s")'''),
+    md("""
+## What the converter approximated
+
+MuJoCo has no spline couplings, moving path points, conditional path points or OpenSim muscle
+models. The report lists each approximation with its worst error over the coordinate's range.
+"""),
+    code('''
+print(result.report.summary()[:4000])'''),
+    md("""
+## Kinematics against OpenSim
+
+Random poses inside the coordinate ranges, the same independent coordinates set in both models;
+errors are the body-origin distance (mm) and the orientation difference (degrees).
+"""),
+    code('''
+from o2m.validate import compare_kinematics
+
+kin = compare_kinematics(fetched.osim, result.xml, n_poses=10 if QUICK else 200, seed=0, progress=False)
+print(kin.summary())'''),
+    md("""
+## Muscle-tendon lengths and moment arms
+
+`compare_muscles` sets the same poses in both models and compares each muscle's length and its
+moment arms. The plot shows a moment arm against the elbow angle in both simulators.
+"""),
+    code('''
+from o2m.validate_muscles import compare_muscles, plot_moment_arms
+
+mus = compare_muscles(fetched.osim, result.xml, n_poses=10 if QUICK else 200, seed=0)
+print(mus.summary()[:3000])'''),
+    code('''
+import matplotlib.pyplot as plt
+
+fig, axes = plt.subplots(1, 3, figsize=(12, 3))
+for ax, muscle in zip(axes, ["BIClong", "TRIlong", "BRA"]):
+    plot_moment_arms(fetched.osim, result.xml, muscle, "elbow_flexion", ax=ax, n=21 if QUICK else 101)
+plt.tight_layout(); plt.show()'''),
+    md("""
+## The model in 3-D
+
+`o2m.viewer` draws the converted model with meshcat: bones, muscle paths coloured by activation,
+markers. The scene is exported to a self-contained HTML file, shown here in a frame (drag to
+rotate, scroll to zoom).
+"""),
+    code('''
+import mujoco
+from o2m.viewer import notebook_iframe, show_pose
+
+model = mujoco.MjModel.from_xml_path(str(result.xml))
+html = OUT / "mobl_arms_scene.html"
+show_pose(model, model.qpos0, html=html, decimate=0.003).close()  # 0.003 m mesh grid: ~1.3 MB page
+print(f"{html.stat().st_size / 1e6:.1f} MB")
+notebook_iframe(html)'''),
+]
+
+NOTEBOOKS["02_activations.ipynb"] = [
+    md("""
+# 2. Random muscle-activation sets
+
+The paper drives the model with random excitations: 1 s long, sampled at 500 Hz (every 2 ms,
+MuJoCo's time step). Each muscle is active with probability 1/3, as a slow sine
+
+$u(t) = A\\,(1 + \\sin(2\\pi f t + \\varphi))/2$, with $A \\sim U(0,1]$, $f \\sim U(0, 1]$ Hz,
+$\\varphi \\sim U(0, 2\\pi)$,
+
+and zero otherwise. Both simulators turn these excitations into muscle activations with their own
+first-order activation dynamics. A seed makes the sets reproducible.
+"""),
+    code(PARAMETERS),
+    code('''
+from o2m.dataset import load_dataset
+
+ds = load_dataset(DATA)
+sets = ds.activations
+print(f"{len(sets)} sets x {len(sets.times)} samples x {len(sets.muscles)} muscles, seed {sets.seed}")
+print(f"fraction of active muscles: {sets.active.mean():.3f} (expected 1/3)")'''),
+    md("The stored sets are exactly what the generator gives for the stored seed:"),
+    code('''
+import numpy as np
+from o2m.activations import generate_activations
+
+again = generate_activations(sets.muscles, 3, seed=sets.seed)
+print("identical:", np.array_equal(again.values, sets.values[:3]))'''),
+    md("## One set, muscle by muscle"),
+    code('''
+import matplotlib.pyplot as plt
+
+i = 0
+fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4))
+im = ax1.imshow(sets.values[i].T, aspect="auto", extent=[0, 1, len(sets.muscles), 0], vmin=0, vmax=1)
+ax1.set_yticks(np.arange(len(sets.muscles)) + 0.5, sets.muscles, fontsize=5)
+ax1.set_xlabel("time (s)"); ax1.set_title(f"set {i}: excitation per muscle")
+fig.colorbar(im, ax=ax1)
+for m in np.flatnonzero(sets.active[i]):
+    ax2.plot(sets.times, sets.values[i, :, m], label=sets.muscles[m])
+ax2.set_xlabel("time (s)"); ax2.set_ylabel("excitation"); ax2.set_title("the active muscles")
+ax2.legend(fontsize=6, ncol=2)
+plt.show()'''),
+    md("## Over all sets: how many muscles are active, and at what frequency"),
+    code('''
+fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3))
+a.hist(sets.active.sum(axis=1), bins=20); a.set_xlabel("active muscles per set")
+b.hist(sets.frequency[sets.active], bins=20); b.set_xlabel("sine frequency (Hz)")
+plt.show()'''),
+]
+
+NOTEBOOKS["03_forward_simulation.ipynb"] = [
+    md("""
+# 3. Forward simulation in OpenSim and MuJoCo
+
+The same excitations drive OpenSim 4.6 (the reference) and the converted MuJoCo model (2 ms
+steps), from the same initial state (MoBL-ARMS' `initial_states.sto`). OpenSim's trajectories are
+stored in `data/` because they are slow to compute; here we rerun one of them to see the cost,
+simulate the same set in MuJoCo, and compare.
+"""),
+    code(PARAMETERS),
+    code('''
+from o2m.paper import load_experiment
+
+exp = load_experiment(DATA, OUT / "paper")
+ds = exp.dataset
+print(f"{int(ds.ok.sum())} of {len(ds.ok)} OpenSim runs succeeded")
+for i, status, reason in ds.failures():
+    print(f"  set {i}: {status}: {reason}")
+print("free DoFs:", exp.dofs)'''),
+    md("""
+## One set in OpenSim, live
+
+OpenSim integrates with an error-controlled Runge-Kutta-Merson method (accuracy 1e-5, as the
+paper's `setup_fd.xml`). In quick mode we simulate only the first 0.1 s.
+"""),
+    code('''
+import numpy as np
+from o2m import models
+from o2m.opensim_sim import IntegratorSettings, read_initial_state, simulate
+
+i = ds.test[0]
+n = 51 if QUICK else len(ds.times)
+run = simulate(models.fetch_model(ds.meta["model"], progress=False), ds.times[:n], ds.activations.values[i, :n],
+               list(ds.activations.muscles), initial_state=read_initial_state(models.fetch(ds.meta["initial_state"])),
+               settings=IntegratorSettings(**ds.meta["integrator"]))
+print(run.status, f"{run.times[-1]:.3f} s simulated in {run.integration_time:.2f} s")
+cols = [run.coordinate_names.index(d) for d in exp.dofs]
+print("max difference from the stored run (rad):", np.abs(run.coordinates[:, cols] - exp.reference[i, :n]).max())'''),
+    md("## The same set in MuJoCo"),
+    code('''
+import time
+from o2m.mujoco_sim import rollout
+
+t0 = time.perf_counter()
+tr = rollout(exp.model, exp.init[[i]], exp.controls[[i]], joint_names=exp.dofs)
+print(f"1 s simulated in {time.perf_counter() - t0:.3f} s; diverged: {bool(tr.diverged[0])}")'''),
+    code('''
+import matplotlib.pyplot as plt
+from o2m.figures import overlay
+
+overlay(ds.times, exp.dofs, exp.reference[i], {"MuJoCo (converted)": tr.coordinates[0]}, f"test set {i}")
+plt.show()
+print("mean absolute error per DoF (rad):", dict(zip(exp.dofs, np.abs(tr.coordinates[0] - exp.reference[i]).mean(0).round(3))))'''),
+    md("""
+## Speed
+
+`python -m o2m speed` times one 1-s simulation in each simulator on this machine (OpenSim:
+integration only, model loading excluded; MuJoCo: a plain step loop on one thread). The full
+result is stored in `data/mobl_arms/speed.json`.
+"""),
+    code('''
+import json
+speed = json.loads((DATA / "speed.json").read_text()) if (DATA / "speed.json").exists() else None
+if speed:
+    print(f"OpenSim {speed['opensim_median_s']:.2f} s, MuJoCo {speed['mujoco_median_s']:.4f} s: "
+          f"{speed['ratio']:.0f}x; batched rollouts: {speed['rollout_per_s']:.0f} simulations/s "
+          f"on {speed['rollout_threads']} threads")'''),
+    md("""
+## Both motions side by side in 3-D
+
+One side is OpenSim's motion, posed by OpenSim's own kinematics from its stored coordinates (in
+beige, with OpenSim's muscle paths); the other is MuJoCo's. Muscle paths are coloured by MuJoCo's
+activation (blue 0, red 1). Press play in the meshcat controls (Animations).
+"""),
+    code('''
+from o2m.viewer import notebook_iframe, side_by_side
+
+step = 50 if QUICK else 10  # a frame every 0.1 s (quick) or 20 ms, played in real time
+html = OUT / "side_by_side.html"
+side_by_side(exp.model, models.fetch_model(ds.meta["model"], progress=False), ds.coordinate_names,
+             ds.coordinates[i, ::step], tr.qpos[0, ::step], fps=500 / step, activations=tr.act[0, ::step],
+             html=html, decimate=0.003, tendon_stride=2).close()
+print(f"{html.stat().st_size / 1e6:.1f} MB")
+notebook_iframe(html)'''),
+]
+
+NOTEBOOKS["04_parameter_fitting.ipynb"] = [
+    md("""
+# 4. Fitting the model's dynamics with CMA-ES
+
+Geometry is converted exactly or nearly so; dynamics are not (MuJoCo's muscle model, joint limits,
+damping). Like the paper, we tune 160 parameters of the converted model so that its joint
+trajectories match OpenSim's on the training sets:
+
+* per free DoF (5): joint damping and the softness of its limit,
+* per muscle tendon (50): damping and stiffness,
+* per muscle (50): a strength scale.
+
+The objective is the squared joint error (rad²) averaged over time and summed over DoFs and
+training sets, plus a small penalty on moving parameters far (in log10 units) from their start.
+"""),
+    code(PARAMETERS),
+    code('''
+from o2m.fitting import BOUNDS, PENALTY, parameter_space
+from o2m.paper import load_experiment
+
+exp = load_experiment(DATA, OUT / "paper")
+space = parameter_space(exp.model, exp.dofs, exp.muscles)
+print(len(space), "parameters; penalty weight", PENALTY)
+for kind, (lo, hi) in BOUNDS.items():
+    print(f"{kind:18s} {sum(n.startswith(kind + ':') for n in space.names):3d} parameters, bounds {lo:g} .. {hi:g}")'''),
+    md("""
+## A fit
+
+In quick mode, a few generations on a few training sets, to see it work. In full mode we load the
+stored fit (`data/mobl_arms/results/parameters.json`, made by `python -m o2m paper`).
+"""),
+    code('''
+import numpy as np
+from o2m.fitting import TrajectoryObjective, fit_cma, load_fit
+
+if QUICK:
+    train = exp.dataset.train[:4]
+    objective = TrajectoryObjective(exp.model, space, exp.init[train], exp.controls[train], exp.reference[train], exp.dofs)
+    fit = fit_cma(objective, seed=0, generations=3, popsize=6, progress=False)
+else:
+    fit = load_fit(DATA / "results" / "parameters.json")
+print(f"cost {fit.cost0:.4g} -> {fit.cost:.4g}; {fit.evaluations} candidates in {fit.wall_time:.0f} s")'''),
+    code('''
+import matplotlib.pyplot as plt
+plt.plot(fit.history); plt.xlabel("generation"); plt.ylabel("best cost (rad²)"); plt.show()
+values = space.values(fit.x)
+changed = sorted(values, key=lambda n: -abs(fit.x[space.names.index(n)] - space.x0[space.names.index(n)]))[:10]
+start = space.values(space.x0)
+print("the ten parameters the fit moved most (log10 units):")
+for n in changed:
+    print(f"  {n:32s} {start[n]:10.4g} -> {values[n]:10.4g}")'''),
+    md("## Test error per joint, before and after"),
+    code('''
+from o2m.paper import joint_mae
+
+test = exp.dataset.test[:3] if QUICK else exp.dataset.test
+before, _ = joint_mae(exp, exp.model, test)
+after, _ = joint_mae(exp, space.apply(exp.model, fit.x), test)
+print(f"{'DoF':15s} {'converted':>10s} {'fitted':>10s}  (mean absolute error, rad)")
+for d, b, a in zip(exp.dofs, np.nanmean(before, 0), np.nanmean(after, 0)):
+    print(f"{d:15s} {b:10.4f} {a:10.4f}")'''),
+]
+
+NOTEBOOKS["05_corrective_controls.ipynb"] = [
+    md("""
+# 5. Corrective controls
+
+Even a fitted model drifts from OpenSim. The paper asks how small a change of the excitations
+makes MuJoCo follow OpenSim: per muscle, a correction shaped as a cubic spline with knots every
+0.1 s (10 Hz) is added to the reference excitation (and clipped to [0, 1]). The corrections
+minimise the joint error plus an L2 penalty on their size. `o2m.corrections` optimises the
+spline coefficients block by block in time with CMA-ES and keeps a block only if it lowers the
+whole trajectory's cost.
+"""),
+    code(PARAMETERS),
+    code('''
+import numpy as np
+from o2m.corrections import PENALTY, fit_corrections
+from o2m.fitting import load_fit, parameter_space
+from o2m.paper import load_experiment
+
+exp = load_experiment(DATA, OUT / "paper")
+space = parameter_space(exp.model, exp.dofs, exp.muscles)
+fit_file = DATA / "results" / "parameters.json"
+model = space.apply(exp.model, load_fit(fit_file).x) if fit_file.exists() else exp.model
+i = exp.dataset.test[0]
+res = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i], exp.dofs,
+                      generations=2 if QUICK else 6, seed=0)
+print(f"penalty weight {PENALTY}; cost {res.cost0:.4f} -> {res.cost:.4f}; {res.evaluations} simulated windows")
+print("mean absolute joint error (rad):", dict(zip(exp.dofs, res.joint_mae0.round(3))), "->",
+      dict(zip(exp.dofs, res.joint_mae.round(3))))
+print(f"mean absolute correction: {np.abs(res.correction).mean():.4f}")'''),
+    code('''
+import matplotlib.pyplot as plt
+from o2m.figures import overlay
+
+t = exp.dataset.times
+top = np.argsort(-np.abs(res.correction).mean(0))[:6]
+fig, ax = plt.subplots(figsize=(10, 3))
+for m in top:
+    line, = ax.plot(t, exp.dataset.activations.values[i, :, m], "--")
+    ax.plot(t, res.excitations[:, m], color=line.get_color(), label=exp.muscles[m])
+ax.set_xlabel("time (s)"); ax.set_ylabel("excitation"); ax.set_title("reference (dashed) and corrected")
+ax.legend(fontsize=7); plt.show()
+from o2m.mujoco_sim import rollout
+base = rollout(model, exp.init[[i]], exp.controls[[i]], joint_names=exp.dofs).coordinates[0]
+overlay(t, exp.dofs, exp.reference[i], {"fitted": base, "fitted + corrections": res.coordinates}, f"test set {i}")
+plt.show()'''),
+]
+
+NOTEBOOKS["06_figures.ipynb"] = [
+    md("""
+# 6. The paper's figures
+
+Every figure is redrawn from stored results (`data/mobl_arms/results/`, `data/mobl_arms/speed.json`)
+by `o2m.figures.make_figures`; nothing is simulated here. `python -m o2m paper` recomputes the
+results (`--quick` for a small version in minutes).
+"""),
+    code(PARAMETERS),
+    code('''
+import json
+from IPython.display import Image, display
+from o2m.figures import make_figures
+
+target = OUT / "figures" if QUICK else ROOT / "figures"
+written = make_figures(DATA / "results", target, speed_file=DATA / "speed.json")
+for p in written:
+    if p.suffix == ".png":
+        display(Image(filename=str(p)))'''),
+    code('''
+summary = json.loads((DATA / "results" / "summary.json").read_text())
+print(json.dumps(summary["mean_error_rad"], indent=1))
+print("mean absolute correction:", round(summary["mean_abs_correction"], 4))'''),
+]
+
+
+def main() -> None:
+    HERE.mkdir(exist_ok=True)
+    for name, cells in NOTEBOOKS.items():
+        nb = new_notebook(cells=cells, metadata={"kernelspec": {"name": "python3", "display_name": "Python 3",
+                                                                "language": "python"}})
+        nbformat.write(nb, HERE / name)
+        print("wrote", HERE / name)
+
+
+if __name__ == "__main__":
+    main()
