@@ -96,7 +96,8 @@ def _load_activations(path: Path) -> ActivationSets:
 
 def make_dataset(out_dir: str | os.PathLike[str], *, n_sets: int = 100, seed: int = DEFAULT_SEED,
                  model: str = MOBL_MODEL, timeout: float = 600.0, executor=None, max_workers: int | None = None,
-                 settings: IntegratorSettings = IntegratorSettings(), progress: bool = True) -> Dataset:
+                 settings: IntegratorSettings = IntegratorSettings(),  # noqa: B008 (frozen)
+                 progress: bool = True) -> Dataset:
     """Generate excitations, run them in OpenSim (resuming from ``<out>/runs/``), write the dataset."""
     import concurrent.futures as cf
 

@@ -1,7 +1,8 @@
 """Fitting a converted model's dynamics to OpenSim trajectories with CMA-ES.
 
 The parameter vector is the paper's (Ikkala & Hämäläinen 2020): for each free degree of freedom
-its joint damping and the softness of its limit (the stiffness of its CoordinateLimitForce tendons), for each tendon its damping and stiffness, and
+its joint damping and the softness of its limit (the stiffness of its CoordinateLimitForce
+tendons), for each tendon its damping and stiffness, and
 for each muscle a strength scale (160 parameters for MoBL-ARMS: 5 free DoFs, 50 muscles).
 
 Parameters are searched in log10 space, within the bounds of :data:`BOUNDS`:
@@ -119,17 +120,17 @@ class ParameterSpace:
         """Physical values of the searched variables ``x`` (shape (n,)), in the units of :data:`BOUNDS`."""
         x = np.asarray(x, float)
         shift = np.array([10.0 ** lo if kind in ZERO_AT_LOWER else 0.0
-                          for (kind, _), lo in zip(self._targets, self.lower)])
+                          for (kind, _), lo in zip(self._targets, self.lower, strict=False)])
         return np.maximum(10.0 ** x - shift, 0.0)
 
     def values(self, x: np.ndarray) -> dict[str, float]:
         """Physical values ``{name: value}``."""
-        return dict(zip(self.names, map(float, self.physical(x))))
+        return dict(zip(self.names, map(float, self.physical(x)), strict=False))
 
     def apply(self, model: mujoco.MjModel, x: np.ndarray) -> mujoco.MjModel:
         """A copy of ``model`` with the parameters ``x`` (log10, shape (n,)) written in."""
         m = copy.copy(model)
-        for (kind, idx), v in zip(self._targets, self.physical(x)):
+        for (kind, idx), v in zip(self._targets, self.physical(x), strict=False):
             if kind == "damping":
                 m.dof_damping[idx] = v
             elif kind == "limit_scale":
@@ -267,7 +268,7 @@ class FitResult:
         """Physical values by name (``10**x`` unless ``space`` says how to map them)."""
         if space is not None:
             return space.values(self.x)
-        return {n: float(10.0 ** v) for n, v in zip(self.names, self.x)}
+        return {n: float(10.0 ** v) for n, v in zip(self.names, self.x, strict=False)}
 
 
 def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.1, popsize: int | None = None,

@@ -49,7 +49,7 @@ def state_layout(model: mujoco.MjModel, spec: int = STATE_SPEC) -> dict[str, sli
 def muscle_actuator_ids(model: mujoco.MjModel, muscles: Sequence[str]) -> np.ndarray:
     """Actuator id of each muscle name, shape (len(muscles),); KeyError naming the missing ones."""
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, m) for m in muscles]
-    missing = [m for m, i in zip(muscles, ids) if i < 0]
+    missing = [m for m, i in zip(muscles, ids, strict=False) if i < 0]
     if missing:
         raise KeyError(f"MuJoCo model has no actuators named {missing[:5]}{'...' if len(missing) > 5 else ''}")
     return np.asarray(ids, int)
@@ -178,7 +178,7 @@ def rollout(models: mujoco.MjModel | Sequence[mujoco.MjModel], initial_states: n
     controls = np.asarray(controls, float)
     if controls.ndim == 2:
         controls = controls[None]
-    batch, nstep = controls.shape[0], controls.shape[1]
+    batch, _nstep = controls.shape[0], controls.shape[1]
     model0 = models if isinstance(models, mujoco.MjModel) else models[0]
     init = np.atleast_2d(np.asarray(initial_states, float))
     if init.shape[0] == 1 and batch > 1:

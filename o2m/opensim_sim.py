@@ -165,7 +165,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
         controller.addActuator(all_muscles.get(name))
         fn = osim.PiecewiseLinearFunction()
         series = excitations[:, column[name]] if name in column else np.zeros(len(times))
-        for t, u in zip(times, series):
+        for t, u in zip(times, series, strict=False):
             fn.addPoint(float(t), float(u))
         if len(times) == 1:
             fn.addPoint(float(times[0]) + 1.0, float(series[0]))
@@ -239,7 +239,7 @@ def _worker_main(argv: list[str]) -> int:
     """``python -m o2m.opensim_sim IN.npz OUT.npz``: run :func:`simulate` on a job file."""
     job, out = argv
     with np.load(job, allow_pickle=False) as z:
-        init = dict(zip([str(s) for s in z["init_names"]], z["init_values"].tolist()))
+        init = dict(zip([str(s) for s in z["init_names"]], z["init_values"].tolist(), strict=False))
         settings = IntegratorSettings(str(z["method"]), float(z["accuracy"]), float(z["min_step"]),
                                       float(z["max_step"]))
         run = simulate(str(z["osim"]), z["times"], z["excitations"], [str(s) for s in z["muscles"]],

@@ -79,7 +79,7 @@ class Experiment:
 
 def load_experiment(data_dir: str | os.PathLike[str] = DATA_DIR, model_dir: str | os.PathLike[str] = "out/paper",
                     *, reconvert: bool = False) -> Experiment:
-    """Convert the dataset's model into ``model_dir`` (unless an up-to-date conversion is there) and lay out the data."""
+    """Convert the dataset's model into ``model_dir`` (unless an up-to-date conversion is there); lay out the data."""
     from o2m import models
     from o2m.convert import convert
 
@@ -98,9 +98,9 @@ def load_experiment(data_dir: str | os.PathLike[str] = DATA_DIR, model_dir: str 
     n, n_t = len(ds.status), len(ds.times)
     init = np.full((n, mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)), np.nan)
     for i in np.flatnonzero(ds.ok):
-        init[i] = initial_state(model, dict(zip(ds.coordinate_names, ds.coordinates[i, 0])),
-                                speeds=dict(zip(ds.coordinate_names, ds.speeds[i, 0])),
-                                activations=dict(zip(ds.muscle_names, ds.opensim_activations[i, 0])))
+        init[i] = initial_state(model, dict(zip(ds.coordinate_names, ds.coordinates[i, 0], strict=False)),
+                                speeds=dict(zip(ds.coordinate_names, ds.speeds[i, 0], strict=False)),
+                                activations=dict(zip(ds.muscle_names, ds.opensim_activations[i, 0], strict=False)))
     controls = controls_from_excitations(model, muscles, ds.activations.values)
     reference = ds.coordinates[:, :, cols]
     assert reference.shape == (n, n_t, len(dofs))

@@ -50,7 +50,7 @@ class Storage:
 
     def first_row(self) -> dict[str, float]:
         """The first row as ``{label: value}``."""
-        return dict(zip(self.columns, map(float, self.data[0])))
+        return dict(zip(self.columns, map(float, self.data[0]), strict=False))
 
 
 def read_sto(path: str | os.PathLike[str]) -> Storage:

@@ -8,7 +8,7 @@ import pytest
 
 from o2m.activations import generate_activations
 from o2m.corrections import bspline_basis, fit_corrections
-from o2m.fitting import (TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit)
+from o2m.fitting import TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit
 from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout
 
 PENDULUM = """

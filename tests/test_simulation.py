@@ -39,8 +39,8 @@ def test_opensim_and_mujoco_agree_on_a_passive_swing(arm26):
     exc = np.zeros((len(t), 6))
     run = simulate(osim, t, exc, ARM26_MUSCLES)
     assert run.ok and np.isfinite(run.coordinates).all()
-    init = initial_state(model, dict(zip(run.coordinate_names, run.coordinates[0])),
-                         activations=dict(zip(run.muscle_names, run.activations[0])))
+    init = initial_state(model, dict(zip(run.coordinate_names, run.coordinates[0], strict=False)),
+                         activations=dict(zip(run.muscle_names, run.activations[0], strict=False)))
     tr = rollout(model, init, controls_from_excitations(model, ARM26_MUSCLES, exc)[None],
                  joint_names=run.coordinate_names)
     assert not tr.diverged[0]

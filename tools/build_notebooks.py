@@ -225,7 +225,8 @@ from o2m.figures import overlay
 
 overlay(ds.times, exp.dofs, exp.reference[i], {"MuJoCo (converted)": tr.coordinates[0]}, f"test set {i}")
 plt.show()
-print("mean absolute error per DoF (rad):", dict(zip(exp.dofs, np.abs(tr.coordinates[0] - exp.reference[i]).mean(0).round(3))))'''),
+mae = np.abs(tr.coordinates[0] - exp.reference[i]).mean(0)
+print("mean absolute error per DoF (rad):", dict(zip(exp.dofs, mae.round(3))))'''),
     md("""
 ## Speed
 
@@ -283,7 +284,8 @@ exp = load_experiment(DATA, OUT / "paper")
 space = parameter_space(exp.model, exp.dofs, exp.muscles)
 print(len(space), "parameters; penalty weight", PENALTY)
 for kind, (lo, hi) in BOUNDS.items():
-    print(f"{kind:18s} {sum(n.startswith(kind + ':') for n in space.names):3d} parameters, bounds {lo:g} .. {hi:g}")'''),
+    count = sum(n.startswith(kind + ":") for n in space.names)
+    print(f"{kind:18s} {count:3d} parameters, bounds {lo:g} .. {hi:g}")'''),
     md("""
 ## A fit
 
@@ -296,7 +298,8 @@ from o2m.fitting import TrajectoryObjective, fit_cma, load_fit
 
 if QUICK:
     train = exp.dataset.train[:4]
-    objective = TrajectoryObjective(exp.model, space, exp.init[train], exp.controls[train], exp.reference[train], exp.dofs)
+    objective = TrajectoryObjective(exp.model, space, exp.init[train], exp.controls[train],
+                                    exp.reference[train], exp.dofs)
     fit = fit_cma(objective, seed=0, generations=3, popsize=6, progress=False)
 else:
     fit = load_fit(DATA / "results" / "parameters.json")
