@@ -401,6 +401,8 @@ print("mean absolute correction:", round(summary["mean_abs_correction"], 4))''')
 def main() -> None:
     HERE.mkdir(exist_ok=True)
     for name, cells in NOTEBOOKS.items():
+        for k, cell in enumerate(cells):
+            cell.id = f"{Path(name).stem[:2]}-{k:02d}"  # stable ids: a rebuild changes only what changed
         nb = new_notebook(cells=cells, metadata={"kernelspec": {"name": "python3", "display_name": "Python 3",
                                                                 "language": "python"}})
         nbformat.write(nb, HERE / name)
