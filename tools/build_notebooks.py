@@ -381,20 +381,33 @@ by `o2m.figures.make_figures`; nothing is simulated here. `python -m o2m paper` 
 results (`--quick` for a small version in minutes).
 """),
     code(PARAMETERS),
+    md("""
+The stored results come from `python -m o2m paper` (full mode). Where they are missing (a fresh
+dataset, say), quick mode computes a small version first, into `out/`.
+"""),
     code('''
 import json
+from o2m.paper import QUICK as QUICK_SETTINGS, run_paper
+
+results = DATA / "results"
+speed_file = DATA / "speed.json"
+if not (results / "results.npz").exists():
+    if not QUICK:
+        raise FileNotFoundError(f"no stored results in {results}: run `python -m o2m paper` first")
+    results = OUT / "quick-results"
+    run_paper(DATA, settings=QUICK_SETTINGS, model_dir=OUT / "paper", results_dir=results, refit=True, progress=False)
+summary = json.loads((results / "summary.json").read_text())
+print(json.dumps(summary["mean_error_rad"], indent=1))
+print("mean absolute correction:", round(summary["mean_abs_correction"], 4))'''),
+    code('''
 from IPython.display import Image, display
 from o2m.figures import make_figures
 
 target = OUT / "figures" if QUICK else ROOT / "figures"
-written = make_figures(DATA / "results", target, speed_file=DATA / "speed.json")
+written = make_figures(results, target, speed_file=speed_file)
 for p in written:
     if p.suffix == ".png":
         display(Image(filename=str(p)))'''),
-    code('''
-summary = json.loads((DATA / "results" / "summary.json").read_text())
-print(json.dumps(summary["mean_error_rad"], indent=1))
-print("mean absolute correction:", round(summary["mean_abs_correction"], 4))'''),
 ]
 
 
