@@ -165,6 +165,21 @@ def cmd_speed(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(a: argparse.Namespace) -> int:
+    """Replay an OpenSim .mot/.sto coordinate motion on a converted model, as a meshcat HTML page."""
+    import mujoco
+
+    from .motion import load_motion, resample_motion
+    from .viewer import animate_qpos
+
+    model = mujoco.MjModel.from_xml_path(a.xml)
+    motion = resample_motion(load_motion(a.motion, model), model, a.fps)
+    animate_qpos(model, motion.qpos, fps=a.fps, html=a.output, decimate=a.decimate or None).close()
+    print(f"{len(motion.times)} frames over {motion.duration:.2f} s of {len(motion.coordinates)} coordinates "
+          f"-> {a.output}" + (f" (ignored columns: {', '.join(motion.unmatched[:5])}...)" if motion.unmatched else ""))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="o2m", description="Convert OpenSim models to MuJoCo and measure their fidelity.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -218,6 +233,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--sets", type=int, default=5)
     sp.add_argument("--save", default=None, help="write the measurements to this JSON file")
     sp.set_defaults(func=cmd_speed)
+    rp = sub.add_parser("replay", help="replay an OpenSim .mot/.sto motion on a converted model (meshcat HTML)")
+    rp.add_argument("xml", help="the converted model (.xml)")
+    rp.add_argument("motion", help="an OpenSim motion (.mot or .sto) with coordinate columns")
+    rp.add_argument("-o", "--output", default="replay.html", help="HTML page to write (default: replay.html)")
+    rp.add_argument("--fps", type=float, default=30.0, help="frames per second of the animation")
+    rp.add_argument("--decimate", type=float, default=0.003, help="mesh simplification grid, m (0: none)")
+    rp.set_defaults(func=cmd_replay)
     return p
 
 

@@ -115,3 +115,22 @@ def test_resample(tmp_path):
     np.testing.assert_allclose(motion.times, [0.0, 0.25, 0.5, 0.75, 1.0])
     np.testing.assert_allclose(motion.qpos[:, 0], motion.times)
     np.testing.assert_allclose(motion.qpos[:, 2], 2 * motion.times)
+
+
+def test_replay_command_writes_a_page(tmp_path):
+    """``python -m o2m replay MODEL.xml MOTION.mot``: a .mot in degrees becomes a meshcat page."""
+    require_mirror()
+    from o2m.cli import main
+    from o2m.convert import convert
+    from o2m.models import fetch_model_with_geometry
+    from o2m.storage import write_sto
+
+    f = fetch_model_with_geometry("arm26", progress=False)
+    res = convert(f.osim, tmp_path / "arm26", geometry_dirs=[f.geometry_dir], fit_mechanics=False)
+    t = np.linspace(0, 1, 21)
+    mot = write_sto(tmp_path / "flex.mot", t, ["r_shoulder_elev", "r_elbow_flex", "pelvis_tx"],
+                    np.column_stack([10 * t, 90 * t, 0 * t]), in_degrees=True)
+    out = tmp_path / "replay.html"
+    assert main(["replay", str(res.xml), str(mot), "-o", str(out), "--fps", "10"]) == 0
+    html = out.read_text()
+    assert out.stat().st_size > 100_000 and "<script" in html and "http://" not in html.split("<body")[0]
