@@ -147,6 +147,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
     import opensim as osim
 
     t0 = time.perf_counter()
+    osim.Logger.setLevelString("warn")  # the Manager logs every integrate() call at info level
     times = np.asarray(times, float)
     excitations = np.asarray(excitations, float)
     if excitations.shape != (len(times), len(muscles)):
