@@ -12,7 +12,9 @@ The simulation (:func:`simulate`) adds a PrescribedController with one piecewise
 per muscle (zero for muscles not given), sets the initial state (coordinates, speeds, muscle
 activations and fibre lengths, by OpenSim state-variable name, e.g. from MoBL-ARMS'
 ``initial_states.sto``), and integrates with OpenSim's Manager up to each sample time,
-recording every coordinate's value (rad or m) and speed and every muscle's activation.
+recording every coordinate's value (rad or m) and speed and every muscle's activation and
+tendon force (N), the force the muscle pulls its path with (what :mod:`o2m.force_fit` fits
+MuJoCo's muscles to).
 """
 
 from __future__ import annotations
@@ -54,6 +56,8 @@ class OpenSimRun:
         coordinates: coordinate values, shape (T, n_coordinates), rad or m; NaN after a failure.
         speeds: coordinate speeds, shape (T, n_coordinates), rad/s or m/s; NaN after a failure.
         activations: muscle activations, shape (T, n_muscles); NaN after a failure.
+        tendon_forces: muscle tendon forces, shape (T, n_muscles), N (positive when pulling);
+            NaN after a failure (and in runs stored before o2m recorded them).
         coordinate_names, muscle_names: column labels.
         t_reached: last time reached, seconds.
         wall_time: wall-clock seconds the run took (loading the model included).
@@ -66,6 +70,7 @@ class OpenSimRun:
     coordinates: np.ndarray
     speeds: np.ndarray
     activations: np.ndarray
+    tendon_forces: np.ndarray
     coordinate_names: list[str] = field(default_factory=list)
     muscle_names: list[str] = field(default_factory=list)
     t_reached: float = 0.0
@@ -78,15 +83,17 @@ class OpenSimRun:
 
     def to_npz(self, path: str | os.PathLike[str]) -> None:
         np.savez(path, status=self.status, reason=self.reason, times=self.times, coordinates=self.coordinates,
-                 speeds=self.speeds, activations=self.activations, coordinate_names=np.array(self.coordinate_names),
+                 speeds=self.speeds, activations=self.activations, tendon_forces=self.tendon_forces,
+                 coordinate_names=np.array(self.coordinate_names),
                  muscle_names=np.array(self.muscle_names), t_reached=self.t_reached, wall_time=self.wall_time,
                  integration_time=self.integration_time)
 
     @classmethod
     def from_npz(cls, path: str | os.PathLike[str]) -> OpenSimRun:
         with np.load(path) as z:
+            forces = z["tendon_forces"] if "tendon_forces" in z.files else np.full(z["activations"].shape, np.nan)
             return cls(str(z["status"]), str(z["reason"]), z["times"], z["coordinates"], z["speeds"],
-                       z["activations"], [str(s) for s in z["coordinate_names"]],
+                       z["activations"], forces, [str(s) for s in z["coordinate_names"]],
                        [str(s) for s in z["muscle_names"]], float(z["t_reached"]), float(z["wall_time"]),
                        float(z["integration_time"]) if "integration_time" in z.files else float("nan"))
 
@@ -94,7 +101,8 @@ class OpenSimRun:
     def empty(cls, status: str, reason: str, times: np.ndarray, n_coordinates: int = 0, n_muscles: int = 0,
               wall_time: float = 0.0) -> OpenSimRun:
         nan = np.full((len(times), n_coordinates), np.nan)
-        return cls(status, reason, np.asarray(times), nan, nan.copy(), np.full((len(times), n_muscles), np.nan),
+        per_muscle = np.full((len(times), n_muscles), np.nan)
+        return cls(status, reason, np.asarray(times), nan, nan.copy(), per_muscle, per_muscle.copy(),
                    wall_time=wall_time)
 
 
@@ -140,6 +148,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
         muscles: names of the muscles the columns drive; other muscles get zero excitation.
         initial_state: state-variable values by name (see :func:`read_initial_state`); names the
             model does not have are ignored, so a 3.x file fits a model with locked coordinates.
+            Without fibre lengths among them, the muscles start in equilibrium.
         settings: integrator settings.
         wall_limit: stop with status ``"timeout"`` after this many wall-clock seconds (checked
             between samples; :func:`run_isolated` also kills a run stuck inside one sample).
@@ -175,6 +184,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
     state = model.initSystem()
     coords = model.getCoordinateSet()
     coord_names = [coords.get(i).getName() for i in range(coords.getSize())]
+    given: set[str] = set()
     if initial_state:
         sv_names = list(model.getStateVariableNames().to_numpy()) if hasattr(
             model.getStateVariableNames(), "to_numpy") else [
@@ -183,11 +193,18 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
             path = _state_variable_path(sv_names, label)
             if path is not None:
                 model.setStateVariableValue(state, path, float(value))
+                given.add(path)
     state.setTime(float(times[0]))
+    if not any(p.endswith("/fiber_length") for p in given):
+        # no fibre lengths given: start the muscles in equilibrium (OpenSim's ForwardTool does the
+        # same), not at OpenSim's default fibre length, which can start a muscle at many times its
+        # max isometric force
+        model.equilibrateMuscles(state)
     model.realizeVelocity(state)
 
     n, nc, nm = len(times), len(coord_names), len(muscle_names)
-    q, u, act = (np.full((n, nc), np.nan), np.full((n, nc), np.nan), np.full((n, nm), np.nan))
+    q, u = np.full((n, nc), np.nan), np.full((n, nc), np.nan)
+    act, force = np.full((n, nm), np.nan), np.full((n, nm), np.nan)
     coord_objs = [coords.get(i) for i in range(nc)]
     muscle_objs = [all_muscles.get(i) for i in range(nm)]
 
@@ -195,13 +212,14 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
         q[k] = [c.getValue(s) for c in coord_objs]
         u[k] = [c.getSpeedValue(s) for c in coord_objs]
         act[k] = [m.getActivation(s) for m in muscle_objs]
+        force[k] = [m.getTendonForce(s) for m in muscle_objs]  # valid: the state is realized to Dynamics
         return bool(np.isfinite(q[k]).all() and np.isfinite(u[k]).all())
 
     t_integrate = [float("nan")]
 
     def result(status: str, reason: str, t_reached: float) -> OpenSimRun:
         now = time.perf_counter()
-        return OpenSimRun(status, reason, times, q, u, act, coord_names, muscle_names, t_reached, now - t0,
+        return OpenSimRun(status, reason, times, q, u, act, force, coord_names, muscle_names, t_reached, now - t0,
                           now - t_integrate[0])
 
     model.realizeDynamics(state)

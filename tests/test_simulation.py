@@ -27,18 +27,23 @@ def arm26(tmp_path_factory):
     return fetched.osim, mujoco.MjModel.from_xml_path(str(conv.xml))
 
 
-def test_opensim_and_mujoco_agree_on_a_passive_swing(arm26):
-    """Zero excitation for 0.2 s: the arm falls under gravity and passive muscle forces.
+def test_opensim_and_mujoco_agree_on_a_simple_excitation(arm26):
+    """The triceps excited at 0.5 for 0.3 s, from rest with the muscles in equilibrium.
 
-    The elbow moves about 0.4 rad; MuJoCo stays within 0.1 rad of OpenSim (measured: 0.037 rad
-    shoulder, 0.066 rad elbow; the rest is the MuJoCo muscle model and OpenSim's 1 % minimum
-    activation, which the parameter fit and the corrective controls address).
+    OpenSim moves the shoulder 0.58 rad and the elbow 0.34 rad; MuJoCo stays within 0.12 rad
+    (measured: 0.085 rad shoulder, 0.093 rad elbow). What is left is the muscle model (MuJoCo's
+    rigid tendon against Thelen's elastic one); flexor or co-contraction excitations leave more
+    (0.2 to 0.5 rad), which is what :mod:`o2m.force_fit` and the parameter fit address.
     """
     osim, model = arm26
-    t = np.arange(101) * 0.002
+    t = np.arange(151) * 0.002
     exc = np.zeros((len(t), 6))
+    exc[:, :3] = 0.5  # TRIlong, TRIlat, TRImed
     run = simulate(osim, t, exc, ARM26_MUSCLES)
     assert run.ok and np.isfinite(run.coordinates).all()
+    # tendon forces (N) from equilibrium: no start at many times the max isometric force (800 N)
+    assert np.isfinite(run.tendon_forces).all() and (run.tendon_forces >= 0).all()
+    assert run.tendon_forces[0].max() < 200
     init = initial_state(model, dict(zip(run.coordinate_names, run.coordinates[0], strict=False)),
                          activations=dict(zip(run.muscle_names, run.activations[0], strict=False)))
     tr = rollout(model, init, controls_from_excitations(model, ARM26_MUSCLES, exc)[None],
@@ -46,9 +51,9 @@ def test_opensim_and_mujoco_agree_on_a_passive_swing(arm26):
     assert not tr.diverged[0]
     assert np.array_equal(tr.coordinates[0, 0], run.coordinates[0])  # same initial state
     moved = np.abs(run.coordinates[-1] - run.coordinates[0])
-    assert moved.max() > 0.3
+    assert moved.min() > 0.3
     err = np.abs(tr.coordinates[0] - run.coordinates)
-    assert err.max() < 0.1, err.max(axis=0)
+    assert err.max() < 0.12, err.max(axis=0)
 
 
 def test_batched_rollout_equals_a_plain_step_loop(arm26):
@@ -100,7 +105,7 @@ def test_failures_are_recorded_not_raised(arm26, tmp_path):
     t = np.arange(101) * 0.002
     missing = run_isolated(tmp_path / "missing.osim", t, np.zeros((len(t), 6)), ARM26_MUSCLES, timeout=60)
     assert missing.status == "failed" and "Cannot open file" in missing.reason
-    long_t = np.arange(2001) * 0.002
+    long_t = np.arange(30001) * 0.002  # 60 s of motion: far more than 1 s of wall clock
     slow = run_isolated(osim, long_t, np.full((len(long_t), 6), 0.5), ARM26_MUSCLES, timeout=1.0)
     assert slow.status == "timeout" and slow.t_reached < long_t[-1]
     nan = np.zeros((len(t), 6))
