@@ -86,7 +86,7 @@ def cmd_dataset(a: argparse.Namespace) -> int:
     ds = make_dataset(a.out, n_sets=a.sets, seed=a.seed, timeout=a.timeout, max_workers=a.workers)
     fails = ds.failures()
     print(f"{len(ds.ok)} sets, {int(ds.ok.sum())} succeeded, {len(fails)} failed; "
-          f"split {len(ds.train)} train / {len(ds.test)} test -> {a.out}")
+          f"split {len(ds.train)} train / {len(ds.test)} test / {len(ds.validation)} validation -> {a.out}")
     for i, status, reason in fails:
         print(f"  set {i}: {status}: {reason}")
     ok_times = ds.wall_time[ds.ok]
@@ -132,9 +132,14 @@ def cmd_paper(a: argparse.Namespace) -> int:
     e = summary["mean_error_rad"]
     print()
     print(f"Mean absolute joint error on {summary['n_test']} test sets (rad): converted {e['converted']:.4f}, "
-          f"fitted {e['fitted']:.4f}, with corrections {e['corrected']:.4f}")
+          f"muscle forces fitted {e['force_fitted']:.4f}, CMA-ES fitted {e['fitted']:.4f}, "
+          f"with corrections {e['corrected']:.4f}")
+    print(f"  {'DoF':15s} {'converted':>10s} {'forces':>10s} {'CMA-ES':>10s} {'corrected':>10s}")
     for d, v in summary["per_joint_error_rad"].items():
-        print(f"  {d:15s} {v['converted']:.4f} -> {v['fitted']:.4f} -> {v['corrected']:.4f}")
+        print(f"  {d:15s} {v['converted']:10.4f} {v['force_fitted']:10.4f} {v['fitted']:10.4f} {v['corrected']:10.4f}")
+    mf = summary["muscle_forces"]
+    print(f"Muscle force fit: RMS error {mf['rms_held_out_start']:.2f} -> {mf['rms_held_out']:.2f} % of max isometric "
+          f"force on held-out states ({mf['kept']} of {mf['muscles']} muscles changed)")
     print(f"Mean absolute correction: {summary['mean_abs_correction']:.4f}")
     f = summary["fit"]
     print(f"CMA-ES: cost {f['cost0']:.4g} -> {f['cost']:.4g} in {f['generations']} generations, "

@@ -11,11 +11,13 @@ kept in ``data/mobl_arms/``:
     ``status`` (n_sets,) ``"ok"``/``"failed"``/``"nan"``/``"timeout"``; ``reason``;
     ``t_reached`` and ``wall_time`` (n_sets,) s; ``coordinates`` and ``speeds``
     (n_sets, T, n_coordinates) float32, rad or m (NaN after a failure); ``activations``
-    (n_sets, T, n_muscles) float16; ``coordinate_names``; ``muscle_names``; the model file's
-    registry path and sha256; OpenSim's version; the integrator settings.
+    (n_sets, T, n_muscles) float16; ``tendon_forces`` (n_sets, T, n_muscles) float16, N, each
+    muscle's tendon force (positive when pulling); ``coordinate_names``; ``muscle_names``; the
+    model file's registry path and sha256; OpenSim's version; the integrator settings.
 ``split.json``
-    ``train`` and ``test`` set indices, drawn (seeded) from the runs that succeeded, 80 % / 20 %
-    as in the paper (78 / 19 of 97).
+    ``train``, ``test`` and ``validation`` set indices, drawn (seeded) from the runs that
+    succeeded: the paper's 78 training and 19 test sets (of its 97 successful runs; fewer
+    successes shrink both in proportion), the rest held out for validation.
 
 Runs are saved one file each under ``<out>/runs/`` as they finish, so an interrupted
 generation resumes where it stopped.
@@ -40,7 +42,8 @@ MOBL_MODEL = "mobl_arms_no_wrap"
 (the wrapped OpenSim model stalls: 0.47 s simulated in 960 s)."""
 MOBL_INITIAL_STATE = "mobl-arms/initial_states.sto"
 DEFAULT_SEED = 2020
-TEST_FRACTION = 0.2
+#: The paper's split: 78 training and 19 test sets of its 97 successful OpenSim runs.
+PAPER_SPLIT = (78, 19)
 
 
 @dataclass
@@ -55,10 +58,12 @@ class Dataset:
     coordinates: np.ndarray
     speeds: np.ndarray
     opensim_activations: np.ndarray
+    tendon_forces: np.ndarray
     coordinate_names: list[str]
     muscle_names: list[str]
     train: list[int]
     test: list[int]
+    validation: list[int]
     meta: dict
 
     @property
@@ -74,13 +79,21 @@ class Dataset:
         return [(i, str(self.status[i]), str(self.reason[i])) for i in np.flatnonzero(~self.ok)]
 
 
-def make_split(ok: np.ndarray, *, seed: int, test_fraction: float = TEST_FRACTION) -> tuple[list[int], list[int]]:
-    """Seeded train/test split of the successful set indices (``round(test_fraction * n_ok)`` test sets)."""
+def make_split(ok: np.ndarray, *, seed: int, sizes: tuple[int, int] = PAPER_SPLIT
+               ) -> tuple[list[int], list[int], list[int]]:
+    """Seeded (train, test, validation) split of the successful set indices.
+
+    ``sizes`` are the training and test counts wanted (the paper's 78 and 19); with fewer
+    successful runs than their sum both shrink in proportion. What is left is validation.
+    """
     good = np.flatnonzero(ok)
-    rng = np.random.default_rng(seed)
-    perm = rng.permutation(good)
-    n_test = int(round(test_fraction * len(good)))
-    return sorted(int(i) for i in perm[n_test:]), sorted(int(i) for i in perm[:n_test])
+    perm = np.random.default_rng(seed).permutation(good)
+    n_train, n_test = sizes
+    if len(good) < n_train + n_test:
+        n_test = int(round(len(good) * n_test / (n_train + n_test)))
+        n_train = len(good) - n_test
+    test, train, rest = perm[:n_test], perm[n_test:n_test + n_train], perm[n_test + n_train:]
+    return sorted(int(i) for i in train), sorted(int(i) for i in test), sorted(int(i) for i in rest)
 
 
 def _save_activations(path: Path, s: ActivationSets) -> None:
@@ -147,8 +160,9 @@ def make_dataset(out_dir: str | os.PathLike[str], *, n_sets: int = 100, seed: in
             "command": f"python -m o2m dataset --out {out_dir} --sets {n_sets} --seed {seed}"}
     _write_opensim(out / "opensim.npz", runs, meta)
     ok = np.array([r.ok for r in runs])
-    train, test = make_split(ok, seed=seed)
-    (out / "split.json").write_text(json.dumps({"seed": seed, "train": train, "test": test}, indent=1) + "\n")
+    train, test, validation = make_split(ok, seed=seed)
+    (out / "split.json").write_text(json.dumps({"seed": seed, "train": train, "test": test, "validation": validation},
+                                               indent=1) + "\n")
     return load_dataset(out)
 
 
@@ -168,6 +182,7 @@ def _write_opensim(path: Path, runs: list[OpenSimRun], meta: dict) -> None:
         coordinates=np.stack([grid(r, "coordinates", nc) for r in runs]).astype(np.float32),
         speeds=np.stack([grid(r, "speeds", nc) for r in runs]).astype(np.float32),
         activations=np.stack([grid(r, "activations", nm) for r in runs]).astype(np.float16),
+        tendon_forces=np.stack([grid(r, "tendon_forces", nm) for r in runs]).astype(np.float16),
         coordinate_names=np.array(ref.coordinate_names), muscle_names=np.array(ref.muscle_names),
         meta=json.dumps(meta))
 
@@ -179,8 +194,11 @@ def load_dataset(directory: str | os.PathLike[str]) -> Dataset:
     with np.load(d / "opensim.npz") as z:
         arrays = {k: z[k] for k in z.files}
     split = json.loads((d / "split.json").read_text())
+    forces = arrays.get("tendon_forces")
+    if forces is None:  # a dataset written before o2m recorded tendon forces
+        forces = np.full(arrays["activations"].shape, np.nan)
     return Dataset(sets, arrays["status"], arrays["reason"], arrays["t_reached"], arrays["wall_time"],
                    arrays["coordinates"].astype(float), arrays["speeds"].astype(float),
-                   arrays["activations"].astype(float), [str(s) for s in arrays["coordinate_names"]],
-                   [str(s) for s in arrays["muscle_names"]], split["train"], split["test"],
-                   json.loads(str(arrays["meta"])))
+                   arrays["activations"].astype(float), forces.astype(float),
+                   [str(s) for s in arrays["coordinate_names"]], [str(s) for s in arrays["muscle_names"]],
+                   split["train"], split["test"], split.get("validation", []), json.loads(str(arrays["meta"])))
