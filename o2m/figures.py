@@ -4,8 +4,8 @@
 :func:`o2m.paper.run_paper`) and ``speed.json`` (from :mod:`o2m.speed`) and writes PNG and PDF
 files to ``figures/``:
 
-1. ``joint_errors``: mean absolute error per joint over the test sets, converted / fitted /
-   corrected (rad).
+1. ``joint_errors``: mean absolute error per joint over the test sets (rad): converted, after the
+   muscle force fit, after the CMA-ES fit, with corrective controls.
 2. ``corrections_boxplot``: per muscle, the mean absolute activation correction over the test sets.
 3. ``speed``: time of one 1-s simulation in OpenSim and in MuJoCo, and their ratio.
 4. ``overlay``: joint trajectories of a few test sets, OpenSim against MuJoCo.
@@ -112,13 +112,14 @@ def make_figures(results_dir: str | os.PathLike[str], out_dir: str | os.PathLike
         with np.load(npz) as z:
             r = {k: z[k] for k in z.files}
         dofs, muscles = [str(d) for d in r["dofs"]], [str(m) for m in r["muscles"]]
-        written += _save(joint_error_bars(dofs, {"converted": r["err_converted"], "fitted": r["err_fitted"],
-                                                 "corrected": r["err_corrected"]}), out, "joint_errors")
+        stages = {"converted": "converted", "forces": "muscle forces fitted", "fitted": "+ CMA-ES fit",
+                  "corrected": "+ corrections"}
+        errors = {label: r[f"err_{key}"] for key, label in stages.items() if f"err_{key}" in r}
+        written += _save(joint_error_bars(dofs, errors), out, "joint_errors")
         written += _save(correction_boxplot(muscles, r["correction_mae"]), out, "corrections_boxplot")
         for k, s in enumerate(r["overlay_sets"]):
-            written += _save(overlay(r["times"], dofs, r["overlay_opensim"][k],
-                                     {"converted": r["overlay_converted"][k], "fitted": r["overlay_fitted"][k],
-                                      "corrected": r["overlay_corrected"][k]}, f"test set {int(s)}"),
+            curves = {label: r[f"overlay_{key}"][k] for key, label in stages.items() if f"overlay_{key}" in r}
+            written += _save(overlay(r["times"], dofs, r["overlay_opensim"][k], curves, f"test set {int(s)}"),
                              out, f"overlay_set{int(s):03d}")
     sp = Path(speed_file) if speed_file else res_dir.parent / "speed.json"
     if sp.exists():

@@ -15,9 +15,12 @@ parameter              MuJoCo field                bounds
                        of its limit tendons        CoordinateLimitForce tendons; smaller is softer)
 ``limit_timeconst``    ``jnt_solref[:, 0]``        0.004 .. 0.5 s (a softer limit when larger;
                                                    for a DoF without limit tendons)
-``tendon_damping``     ``tendon_damping``          1e-3 .. 100 N·s/m
-``tendon_stiffness``   ``tendon_stiffness``        1e-2 .. 1e4 N/m (rest length: qpos0 length)
-``muscle_scale``       ``actuator_gainprm[:, 2]``  0.5 .. 2 (x the converted max force)
+``tendon_damping``     ``tendon_damping``          1e-3 .. 1e3 N·s/m
+``tendon_stiffness``   ``tendon_stiffness``        1e-2 .. 1e4 N/m (rest length: qpos0 length; for
+                                                   a tendon without a spring)
+``spring_scale``       ``tendon_stiffness[poly]``  0.1 .. 10 (x the tendon's spring: the passive
+                                                   force :mod:`o2m.force_fit` gives the tendon)
+``muscle_scale``       ``actuator_gainprm[:, 2]``  0.5 .. 2 (x the model's max force)
 =====================  ==========================  =========================================
 
 Damping and stiffness can be zero in a converted model, so for them the searched variable is
@@ -55,8 +58,9 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "damping": (1e-3, 10.0),
     "limit_scale": (0.1, 10.0),
     "limit_timeconst": (0.004, 0.5),
-    "tendon_damping": (1e-3, 100.0),
+    "tendon_damping": (1e-3, 1e3),
     "tendon_stiffness": (1e-2, 1e4),
+    "spring_scale": (0.1, 10.0),
     "muscle_scale": (0.5, 2.0),
 }
 #: Kinds whose searched variable is log10(value + lower bound), so that zero is reachable.
@@ -143,6 +147,9 @@ class ParameterSpace:
                 m.tendon_damping[idx] = v
             elif kind == "tendon_stiffness":
                 m.tendon_stiffness[idx] = v
+            elif kind == "spring_scale":
+                m.tendon_stiffness[idx] = model.tendon_stiffness[idx] * v
+                m.tendon_stiffnesspoly[idx] = model.tendon_stiffnesspoly[idx] * v
             elif kind == "muscle_scale":
                 m.actuator_gainprm[idx, 2] = model.actuator_gainprm[idx, 2] * v
                 m.actuator_biasprm[idx, 2] = model.actuator_biasprm[idx, 2] * v
@@ -180,7 +187,10 @@ def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequenc
             raise ValueError(f"muscle {name!r} does not act through a tendon")
         t = int(model.actuator_trnid[a, 0])
         add("tendon_damping", name, t, float(model.tendon_damping[t]))
-        add("tendon_stiffness", name, t, float(model.tendon_stiffness[t]))
+        if model.tendon_stiffness[t] != 0 or np.any(model.tendon_stiffnesspoly[t] != 0):
+            add("spring_scale", name, t, 1.0)
+        else:
+            add("tendon_stiffness", name, t, float(model.tendon_stiffness[t]))
     for name in muscles:
         add("muscle_scale", name, model.actuator(name).id, 1.0)
     return ParameterSpace(names, np.array(start), np.array(lo), np.array(hi), targets)

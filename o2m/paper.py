@@ -3,14 +3,17 @@
 :func:`load_experiment` converts the bundled MoBL-ARMS model (no wrap objects, wrist locked; the
 model the OpenSim references were computed with) and lays the stored dataset out for MuJoCo:
 initial states, controls and OpenSim joint trajectories of every successful set.
-:func:`run_paper` then fits the parameters on the training sets (:mod:`o2m.fitting`), fits
-corrective controls on the test sets (:mod:`o2m.corrections`) and writes everything the figures
-need to ``<data>/results/``:
+:func:`run_paper` then fits the model in two stages on the training sets: first each muscle's
+force to OpenSim's tendon forces along the training trajectories (:mod:`o2m.force_fit`, which
+the paper did not do), then the paper's 160 parameters to the joint trajectories with CMA-ES
+(:mod:`o2m.fitting`). It fits corrective controls on the test sets (:mod:`o2m.corrections`) and
+writes everything the figures need to ``<data>/results/``:
 
+``muscle_forces.json`` the muscle force fit (:meth:`o2m.force_fit.ForceFit.save`)
 ``parameters.json``   the CMA-ES fit (:func:`o2m.fitting.save_fit`)
 ``checkpoint.pkl``    CMA-ES state, to resume an interrupted fit (not kept in git)
 ``results.npz``       per test set and DoF, mean absolute joint error (rad) of the converted,
-                      fitted and corrected model; per test set and muscle, mean absolute
+                      force-fitted, fitted and corrected model; per test set and muscle, mean absolute
                       correction; joint trajectories of the first test sets for the overlay
 ``summary.json``      the headline numbers and the settings (quick or full)
 """
@@ -28,6 +31,7 @@ import numpy as np
 
 from o2m.dataset import Dataset, load_dataset
 from o2m.fitting import FitResult, TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit
+from o2m.force_fit import ForceFit, fit_forces, sample_states, static_curves
 from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout
 
 __all__ = ["Experiment", "FULL", "QUICK", "Settings", "joint_mae", "load_experiment", "run_paper"]
@@ -44,14 +48,18 @@ class Settings:
     train_sets: int | None  # None: all training sets
     test_sets: int | None
     correction_generations: int
+    force_stride: int = 2  # every force_stride-th OpenSim sample (2 ms apart) enters the muscle force fit
+    force_nfev: int = 600  # least-squares evaluations per muscle
     overlay_sets: int = 3
     seed: int = 0
 
 
-#: The budget of the stored result: 30 generations of 12 candidates, each candidate simulated on all
-#: training sets (about 20 minutes on 2 cores); corrections with 6 generations per spline block.
+#: The budget of the stored result: the muscle force fit on every other sample of the training
+#: sets; 30 generations of 12 candidates, each simulated on all training sets; corrections with 6
+#: generations per spline block.
 FULL = Settings(generations=30, popsize=12, train_sets=None, test_sets=None, correction_generations=6)
-QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2)
+QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2, force_stride=10,
+                 force_nfev=60)
 
 
 @dataclass
@@ -128,8 +136,13 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     out.mkdir(parents=True, exist_ok=True)
     train = exp.dataset.train[: settings.train_sets] if settings.train_sets else exp.dataset.train
     test = exp.dataset.test[: settings.test_sets] if settings.test_sets else exp.dataset.test
-    space = parameter_space(exp.model, exp.dofs, exp.muscles)
-    objective = TrajectoryObjective(exp.model, space, exp.init[train], exp.controls[train], exp.reference[train],
+    t_force = time.perf_counter()
+    forces = fit_muscle_forces(exp, train, out / "muscle_forces.json", settings=settings, refit=refit,
+                               progress=progress)
+    force_model = forces.apply(exp.model)
+    force_seconds = time.perf_counter() - t_force
+    space = parameter_space(force_model, exp.dofs, exp.muscles)
+    objective = TrajectoryObjective(force_model, space, exp.init[train], exp.controls[train], exp.reference[train],
                                     exp.dofs)
     fit_file = out / "parameters.json"
     t0 = time.perf_counter()
@@ -143,9 +156,10 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
                       settings={"train_sets": train, "data": str(data_dir), "xml": exp.xml.name})
         save_fit(fit_file, fit, space)
     fit_seconds = time.perf_counter() - t0
-    fitted = space.apply(exp.model, fit.x)
+    fitted = space.apply(force_model, fit.x)
 
     err_converted, q_converted = joint_mae(exp, exp.model, test)
+    err_forces, q_forces = joint_mae(exp, force_model, test)
     err_fitted, q_fitted = joint_mae(exp, fitted, test)
     corr_err, corr_size, q_corrected = [], [], []
     t1 = time.perf_counter()
@@ -159,28 +173,54 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     k = min(settings.overlay_sets, len(test))
     np.savez_compressed(
         out / "results.npz", dofs=np.array(exp.dofs), muscles=np.array(exp.muscles), test=np.array(test),
-        times=exp.dataset.times, err_converted=err_converted, err_fitted=err_fitted, err_corrected=np.array(corr_err),
-        correction_mae=np.array(corr_size), overlay_sets=np.array(test[:k]), overlay_opensim=exp.reference[test[:k]],
-        overlay_converted=q_converted[:k], overlay_fitted=q_fitted[:k], overlay_corrected=np.array(q_corrected[:k]))
+        times=exp.dataset.times, err_converted=err_converted, err_forces=err_forces, err_fitted=err_fitted,
+        err_corrected=np.array(corr_err), correction_mae=np.array(corr_size), overlay_sets=np.array(test[:k]),
+        overlay_opensim=exp.reference[test[:k]], overlay_converted=q_converted[:k], overlay_forces=q_forces[:k],
+        overlay_fitted=q_fitted[:k], overlay_corrected=np.array(q_corrected[:k]))
+    stages = {"converted": err_converted, "force_fitted": err_forces, "fitted": err_fitted,
+              "corrected": np.array(corr_err)}
     summary = {
         "settings": settings.__dict__, "n_train": len(train), "n_test": len(test),
-        "mean_error_rad": {"converted": float(np.nanmean(err_converted)), "fitted": float(np.nanmean(err_fitted)),
-                           "corrected": float(np.nanmean(corr_err))},
-        "per_joint_error_rad": {d: {"converted": float(np.nanmean(err_converted[:, j])),
-                                    "fitted": float(np.nanmean(err_fitted[:, j])),
-                                    "corrected": float(np.nanmean(np.array(corr_err)[:, j]))}
+        "mean_error_rad": {k: float(np.nanmean(v)) for k, v in stages.items()},
+        "per_joint_error_rad": {d: {k: float(np.nanmean(v[:, j])) for k, v in stages.items()}
                                 for j, d in enumerate(exp.dofs)},
-        "diverged_test_sets": {"converted": int(np.isnan(err_converted).any(axis=1).sum()),
-                               "fitted": int(np.isnan(err_fitted).any(axis=1).sum())},
+        "diverged_test_sets": {k: int(np.isnan(v).any(axis=1).sum()) for k, v in stages.items() if k != "corrected"},
         "mean_abs_correction": float(np.mean(corr_size)),
+        "muscle_forces": forces.summary(),
         "fit": {"cost0": fit.cost0, "cost": fit.cost, "evaluations": fit.evaluations, "wall_time_s": fit.wall_time,
                 "generations": len(fit.history)},
-        "seconds": {"fit": fit_seconds, "corrections": corr_seconds},
+        "seconds": {"muscle_forces": force_seconds, "fit": fit_seconds, "corrections": corr_seconds},
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
 
 
-def fitted_model(exp: Experiment, fit: FitResult) -> mujoco.MjModel:
-    """The converted model with a fit's parameters written in."""
-    return parameter_space(exp.model, exp.dofs, exp.muscles).apply(exp.model, fit.x)
+def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[str], *, settings: Settings = FULL,
+                      refit: bool = False, progress: bool = True) -> ForceFit:
+    """The muscle force fit on ``sets`` (:mod:`o2m.force_fit`), loaded from ``path`` unless ``refit``; saved there."""
+    path = Path(path)
+    if path.exists() and not refit:
+        forces = ForceFit.load(path)
+        if set(forces.muscles) != set(exp.muscles):
+            raise ValueError(f"{path} fits other muscles than this model; rerun with refit=True")
+        return forces
+    ds = exp.dataset
+    if not np.isfinite(ds.tendon_forces[sets]).any():
+        raise ValueError("the dataset has no OpenSim tendon forces (it predates them): regenerate it with "
+                         "`python -m o2m dataset`")
+    from o2m import models
+
+    samples = sample_states(exp.model, ds.coordinates[sets], ds.speeds[sets], ds.opensim_activations[sets],
+                            ds.tendon_forces[sets], ds.coordinate_names, ds.muscle_names, stride=settings.force_stride)
+    osim = models.fetch_model(ds.meta["model"], progress=False)
+    forces = fit_forces(exp.model, samples, static=static_curves(osim, exp.model), max_nfev=settings.force_nfev,
+                        progress=progress)
+    forces.settings.update(sets=list(map(int, sets)), stride=settings.force_stride, max_nfev=settings.force_nfev)
+    forces.save(path)
+    return forces
+
+
+def fitted_model(exp: Experiment, forces: ForceFit, fit: FitResult) -> mujoco.MjModel:
+    """The converted model with the muscle force fit and the CMA-ES parameters written in."""
+    force_model = forces.apply(exp.model)
+    return parameter_space(force_model, exp.dofs, exp.muscles).apply(force_model, fit.x)

@@ -116,3 +116,21 @@ def test_corrections_reduce_the_error_of_a_weaker_model():
     assert res.cost < 0.3 * res.cost0
     assert res.joint_mae[0] < res.joint_mae0[0]
     assert np.all(res.excitations >= 0) and np.all(res.excitations <= 1)
+
+
+def test_a_tendon_with_a_spring_gets_a_spring_scale():
+    """A muscle tendon whose spring holds the passive force (o2m.force_fit) is scaled, not replaced."""
+    model = pendulum(0.1)
+    t = model.tendon("lifter").id
+    model.tendon_stiffness[t] = 50.0
+    model.tendon_stiffnesspoly[t] = [200.0, 1000.0]
+    space = parameter_space(model, ["swing"], ["lifter"])
+    assert "spring_scale:lifter" in space.names and "tendon_stiffness:lifter" not in space.names
+    assert len(space) == 5  # damping, limit, tendon damping, spring scale, muscle scale
+    x = space.x0.copy()
+    x[space.names.index("spring_scale:lifter")] = np.log10(3.0)
+    m = space.apply(model, x)
+    np.testing.assert_allclose(m.tendon_stiffness[t], 150.0)
+    np.testing.assert_allclose(m.tendon_stiffnesspoly[t], [600.0, 3000.0])
+    plain = parameter_space(pendulum(0.1), ["swing"], ["lifter"])
+    assert "tendon_stiffness:lifter" in plain.names
