@@ -28,6 +28,7 @@ coordinate's unit (rad or m); derivatives are value units per x unit.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -42,7 +43,7 @@ __all__ = [
     "Function", "Constant", "LinearFunction", "PolynomialFunction", "SimmSpline", "GCVSpline",
     "PiecewiseLinearFunction", "PiecewiseConstantFunction", "MultiplierFunction", "Sine",
     "StepFunction", "PolynomialFit", "parse_function", "function_child", "fit_polynomial",
-    "FUNCTION_TAGS",
+    "CouplingFit", "fit_coupling", "FUNCTION_TAGS",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -1218,3 +1219,392 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
         except ValueError:
             pass
     return PolynomialFit(coef=best, max_error=best_err[0], rms_error=best_err[1], lo=lo, hi=hi, x0=x0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Coupling fits beyond a quartic: sums of joints along one axis
+# ---------------------------------------------------------------------------------------------
+#: Starting shapes (c, p) of a new inner polynomial, (t - c)^p, before it is optimised.
+COUPLING_STARTS: tuple[tuple[float, int], ...] = tuple((c, p) for p in (3, 4) for c in (-1.0, -0.5, 0.0, 0.5, 1.0))
+#: Random starting shapes added to those (seeded, so a conversion is reproducible).
+COUPLING_RANDOM_STARTS = 10
+#: Each correction D_k + E_k is a sum of terms whose amplitudes add up to at most this times
+#: max |y - y(x0)|: the extra joints then move about as much as the axis itself, never by
+#: large amounts that cancel (which a free fit of the same quality needs; see fit_coupling).
+COUPLING_AMPLITUDE = 2.0
+#: One more inner joint is added only if it brings the error below this fraction of the last.
+COUPLING_GAIN = 0.9
+_SEARCH_POINTS = 401
+#: Fits already made in this process, by a digest of the function's values and the arguments.
+_COUPLING_CACHE: dict[bytes, CouplingFit] = {}
+_LAWSON_ROUNDS = 4
+_LM_ITERATIONS = 200
+_POLISHED = 3
+_LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+_CHEB = np.polynomial.chebyshev
+_POLY = np.polynomial.polynomial
+
+
+@dataclass(frozen=True)
+class CouplingFit:
+    """y(x) ≈ main(x) + Σ_k [inner_k(x) + outer_k(inner_k(x))]: a function of x written as a sum
+    of MuJoCo joints along (or about) one axis, each joint following a quartic joint equality.
+
+    * ``main`` (5,): the main joint, a quartic in (x - x0), lowest power first;
+    * ``inner`` (K, 5): inner joint k, a quartic in (x - x0) (driven by x);
+    * ``outer`` (K, 5): outer joint k, a quartic in inner joint k's value (a chained equality).
+
+    ``main[0]`` is fn(x0) and every other constant term is 0, so every extra joint is 0 at x0
+    and the fit is exact there. K = 0 is the plain quartic. ``shapes`` (K, 4) are the inner
+    polynomials' Chebyshev coefficients (T_1..T_4) in t = (x - (lo + hi) / 2) / ((hi - lo) / 2).
+    ``max_error`` / ``rms_error``: realised errors of the sum (units of the function's value) on
+    a grid 8x denser than the fitting grid, plus the function's knots; ``quartic_error``: the
+    plain quartic's worst error; ``condition``: 2-norm condition number of the linear program's
+    column-scaled basis; ``amplitude``: the largest range any extra joint moves through over
+    [lo, hi] (units of the function's value).
+    """
+
+    main: FloatArray
+    inner: FloatArray
+    outer: FloatArray
+    shapes: FloatArray
+    max_error: float
+    rms_error: float
+    quartic_error: float
+    condition: float
+    amplitude: float
+    lo: float
+    hi: float
+    x0: float
+
+    @property
+    def n_inner(self) -> int:
+        """K, the number of inner/outer joint pairs (0: a plain quartic)."""
+        return int(self.inner.shape[0])
+
+    def joint_values(self, x: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(main, inner, outer) joint values at x, shapes x.shape, (K, *x.shape), (K, *x.shape),
+        each evaluated as MuJoCo evaluates its equality."""
+        dx = _as_array(x) - self.x0
+        inner = np.array([_POLY.polyval(dx, c) for c in self.inner]).reshape(self.n_inner, *dx.shape)
+        outer = np.array([_POLY.polyval(d, c) for c, d in zip(self.outer, inner, strict=True)]).reshape(inner.shape)
+        return _out(_POLY.polyval(dx, self.main)), inner, outer
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        """The sum of every joint at x (any shape)."""
+        main, inner, outer = self.joint_values(x)
+        return _out(main + inner.sum(axis=0) + outer.sum(axis=0))
+
+    @property
+    def structure(self) -> str:
+        """``quartic`` or e.g. ``quartic + 2 inner quartics, each with an outer quartic``."""
+        if not self.n_inner:
+            return "quartic"
+        many = "s, each" if self.n_inner > 1 else ""
+        return f"quartic + {self.n_inner} inner quartic{many} with an outer quartic"
+
+
+def _shape_values(t: FloatArray, t0: float, shape: FloatArray) -> FloatArray:
+    """The inner polynomial Σ_i shape[i] T_{i+1}(t), minus its value at t0."""
+    c = np.concatenate([[0.0], shape])
+    return _CHEB.chebval(t, c) - _CHEB.chebval(t0, c)
+
+
+def _coupling_basis(t: FloatArray, t0: float, shapes: Sequence[FloatArray]) -> tuple[FloatArray, FloatArray]:
+    """Columns (m, 4 + 3K) of the fit at t: (t - t0)^j, j = 1..4 (the main quartic), then for each
+    inner shape h_k^j, j = 2..4, with h_k scaled to at most 1 in magnitude (h_k^1 is a quartic
+    vanishing at t0, already in the main quartic's span). Returns the columns and the scales
+    N_k of the h_k."""
+    v = t - t0
+    cols = [v ** j for j in range(1, 5)]
+    norms = []
+    for shape in shapes:
+        h = _shape_values(t, t0, shape)
+        nk = max(float(np.max(np.abs(h))), 1e-300)
+        norms.append(nk)
+        h = h / nk
+        cols += [h ** j for j in (2, 3, 4)]
+    return np.stack(cols, axis=1), np.array(norms)
+
+
+class _ShapeSearch:
+    """Variable projection for the inner shapes: for shapes θ (K, 4) (Chebyshev coefficients of
+    T_1..T_4 in t), the weighted least-squares residual of the best linear coefficients, and its
+    Jacobian in Kaufman's approximation, for a Levenberg-Marquardt search. ``weights`` (m,)
+    turns least squares towards minimax (Lawson's iteration)."""
+
+    def __init__(self, t: FloatArray, t0: float, f: FloatArray):
+        self.V = np.stack([(t - t0) ** j for j in range(1, 5)], axis=1)
+        self.phi = np.stack([_CHEB.chebval(t, np.eye(5)[i]) - _CHEB.chebval(t0, np.eye(5)[i])
+                             for i in range(1, 5)], axis=1)
+        self.f = f
+        self.sw = np.ones_like(f)
+        self._key: bytes | None = None
+
+    def _solve(self, flat: FloatArray) -> None:
+        key = flat.tobytes() + self.sw.tobytes()
+        if key == self._key:
+            return
+        th = flat.reshape(-1, 4)
+        norms = np.maximum(np.linalg.norm(th, axis=1), 1e-300)
+        H = (self.phi @ th.T) / norms  # (m, K): the shapes, scaled by |θ_k| (the fit does not depend on it)
+        cols = [self.V] + [np.stack([H[:, k] ** j for j in (2, 3, 4)], axis=1) for k in range(H.shape[1])]
+        A = np.hstack(cols)
+        scale = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
+        As = A * self.sw[:, None] / scale
+        U, S, Vt = np.linalg.svd(As, full_matrices=False)
+        r = int(np.sum(S > S[0] * 1e-12))
+        self.U = U[:, :r]
+        b = self.sw * self.f
+        self.c = (Vt[:r].T @ ((self.U.T @ b) / S[:r])) / scale  # coefficients of the unscaled columns
+        self.H, self.A, self.th, self.norms = H, A, th, norms
+        self.res = self.sw * (A @ self.c - self.f)
+        self._key = key
+
+    def residual(self, flat: FloatArray) -> FloatArray:
+        self._solve(flat)
+        return self.res.copy()  # the caller may change it in place
+
+    def error(self, flat: FloatArray) -> FloatArray:
+        """The unweighted residual A c - f."""
+        self._solve(flat)
+        return self.A @ self.c - self.f  # a new array
+
+    def jac(self, flat: FloatArray) -> FloatArray:
+        self._solve(flat)
+        K = self.H.shape[1]
+        J = np.empty((self.f.size, 4 * K))
+        for k in range(K):
+            b = self.c[4 + 3 * k: 7 + 3 * k]
+            h = self.H[:, k]
+            dh = b[0] * 2 * h + b[1] * 3 * h ** 2 + b[2] * 4 * h ** 3  # d(correction)/dh
+            unit = self.th[k] / self.norms[k]
+            dh_dth = (self.phi - h[:, None] * unit[None, :]) / self.norms[k]  # h = φ θ / |θ|
+            g = (self.sw * dh)[:, None] * dh_dth  # (m, 4)
+            J[:, 4 * k: 4 * k + 4] = g - self.U @ (self.U.T @ g)
+        return J
+
+
+def _levenberg_marquardt(search: _ShapeSearch, x: FloatArray, iterations: int) -> FloatArray:
+    """Minimise |search.residual(x)|^2 from x by Levenberg-Marquardt (Marquardt's diagonal
+    scaling). Written out rather than scipy's MINPACK, whose steps differ in the last bit from run
+    to run, which a search over many local minima turns into different fits of one model."""
+    r, J = search.residual(x), search.jac(x)
+    cost, lam = float(r @ r), 1e-3
+    for _ in range(iterations):
+        g, H = J.T @ r, J.T @ J
+        d = np.diag(H).copy()
+        d = np.maximum(d, 1e-12 * max(float(d.max()), 1e-300))
+        try:
+            step = np.linalg.solve(H + lam * np.diag(d), -g)
+        except np.linalg.LinAlgError:
+            lam *= 10.0
+            continue
+        x_new = x + step
+        r_new = search.residual(x_new)
+        cost_new = float(r_new @ r_new)
+        if cost_new < cost:
+            done = cost - cost_new <= 1e-12 * cost
+            x, r, cost, lam = x_new, r_new, cost_new, max(lam / 3.0, 1e-12)
+            J = search.jac(x)
+            if done:
+                break
+        else:
+            lam *= 4.0
+            if lam > 1e12:
+                break
+    return x
+
+
+def _lp_bounded_minimax(A: FloatArray, f: FloatArray, n_inner: int, bound: float) -> tuple[FloatArray, float] | None:
+    """min_a max |A a - f| with Σ_j |a_kj| <= bound for each correction k (the 3 columns of inner
+    shape k after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None."""
+    from scipy.optimize import linprog
+
+    m, n = A.shape
+    nb = 3 * n_inner
+    sel = np.zeros((nb, n))
+    sel[:, 4:] = np.eye(nb)
+    groups = np.kron(np.eye(n_inner), np.ones((1, 3))) if n_inner else np.zeros((0, 0))
+    ones, zb = np.ones((m, 1)), np.zeros((m, nb))
+    rows = [np.hstack([A, zb, -ones]), np.hstack([-A, zb, -ones])]
+    rhs = [f, -f]
+    if nb:
+        rows += [np.hstack([sel, -np.eye(nb), np.zeros((nb, 1))]), np.hstack([-sel, -np.eye(nb), np.zeros((nb, 1))]),
+                 np.hstack([np.zeros((n_inner, n)), groups, np.zeros((n_inner, 1))])]
+        rhs += [np.zeros(2 * nb), np.full(n_inner, bound)]
+    cost = np.zeros(n + nb + 1)
+    cost[-1] = 1.0
+    res = linprog(cost, A_ub=np.vstack(rows), b_ub=np.concatenate(rhs),
+                  bounds=[(None, None)] * n + [(0, None)] * (nb + 1), method="highs", options=_LP_OPTIONS)
+    if res.status != 0:
+        return None
+    return res.x[:n], float(res.x[-1])
+
+
+def _power_shape(c: float, p: int) -> FloatArray:
+    """Chebyshev coefficients T_1..T_4 of (t - c)^p (its constant term dropped)."""
+    cheb = _CHEB.poly2cheb(_POLY.polypow([-c, 1.0], p))
+    return np.concatenate([cheb, np.zeros(5 - cheb.size)])[1:5]
+
+
+def _shifted_power_series(cheb_shape: FloatArray, t0: float, half: float) -> FloatArray:
+    """Power coefficients (5,) in (x - x0) of Σ_i shape[i] T_{i+1}(t) - (its value at t0), with
+    t - t0 = (x - x0) / half."""
+    p = _CHEB.cheb2poly(np.concatenate([[0.0], cheb_shape]))  # in t, lowest power first
+    p = np.concatenate([p, np.zeros(5 - p.size)])
+    shifted = np.zeros(5)  # p(t0 + v) = Σ_j shifted[j] v^j
+    for i, pi in enumerate(p):
+        for j in range(i + 1):
+            shifted[j] += pi * math.comb(i, j) * t0 ** (i - j)
+    shifted[0] = 0.0
+    return shifted / half ** np.arange(5)
+
+
+def fit_coupling(fn: Callable[[FloatArray], FloatArray], lo: float, hi: float, x0: float, *,
+                 target: float, max_inner: int = 3, n: int = 2001,
+                 amplitude: float = COUPLING_AMPLITUDE, seed: int = 0) -> CouplingFit:
+    """Approximate fn on [lo, hi] by a sum of joints, each following a quartic joint equality.
+
+    What: y(x) - y(x0) ≈ C(x) + Σ_{k=1..K} (D_k(x) + E_k(D_k(x))), where C is a quartic in
+    (x - x0) (the main joint), D_k a quartic in (x - x0) (an inner joint driven by x) and E_k a
+    quartic in D_k (an outer joint driven by the inner one: a chain of two equalities). Every
+    piece is 0 at x0, so the sum is exact there and the reference pose satisfies every equality.
+
+    Why: a MuJoCo joint equality (``mjEQ_JOINT``) is a quartic, so one joint cannot follow a
+    spline closely (about 0.25 mm on a knee translation). Joints of one body along the same
+    axis add up (slides sum their translations, hinges about one axis through one point their
+    angles), and a quartic of a quartic reaches degree 16.
+
+    How: for fixed inner shapes h_k (D_k / α_k, scaled to at most 1), y is linear in the
+    remaining coefficients (the main quartic's and b_kj of h_k^j, j = 2..4), so the minimax fit
+    is one linear program, on column-scaled variables, with each correction's Σ_j |b_kj| held
+    to ``amplitude`` times max |y - y(x0)|. The bound matters: with fixed shapes (t - c_k)^p a
+    free fit reaches the same error only with joints moving metres (or turns) in opposite
+    directions to sum to millimetres (a degree-16 polynomial written in a poorly conditioned
+    basis), which a simulation cannot follow. The inner shapes are chosen by a least-squares
+    search (variable projection, Levenberg-Marquardt) started from (t - c)^p for the shifts and
+    degrees in :data:`COUPLING_STARTS` and a few seeded random shapes, adding one inner joint
+    at a time and keeping the earlier ones as a start. The joints are then C = the main quartic,
+    D_k = α_k h_k with α_k = max |Σ_j b_kj h_k^j|, E_k = -D_k + Σ_j b_kj (D_k / α_k)^j, so that
+    D_k + E_k is the k-th correction, C alone stays close to the plain quartic and dE_k/dD_k is of
+    order 1.
+
+    Which structure: K = 0 (the plain quartic of :func:`fit_polynomial`) when its error is at
+    most ``target``; otherwise K = 1, 2, ... ``max_inner``, stopping at the first K that meets
+    ``target`` (fewest extra joints), and only as long as each inner joint brings the error
+    below :data:`COUPLING_GAIN` times the last; so the error never grows with ``max_inner``.
+    ``max_error`` is the realised error (every joint evaluated as MuJoCo evaluates its
+    equality) on a grid 8x denser than the fitting grid.
+
+    Units: x in the driving coordinate's unit (rad or m), y and ``target`` in the function's.
+    """
+    lo, hi, x0 = float(lo), float(hi), float(x0)
+    if not hi > lo:
+        raise ValueError(f"fit_coupling needs hi > lo, got [{lo}, {hi}]")
+    if not lo <= x0 <= hi:
+        raise ValueError(f"fit_coupling needs lo <= x0 <= hi, got x0 = {x0} outside [{lo}, {hi}]")
+    check = _grid(fn, lo, hi, 8 * (n - 1) + 1)  # type: ignore[arg-type]
+    fc = np.asarray(fn(check), dtype=np.float64)
+    # everything below sees fn only through its values on this grid (which holds the others)
+    key = hashlib.sha256(np.concatenate([check, fc, [lo, hi, x0, target, max_inner, n, amplitude, seed]])
+                         .tobytes()).digest()
+    if key in _COUPLING_CACHE:
+        return _COUPLING_CACHE[key]
+    if len(_COUPLING_CACHE) > 256:
+        _COUPLING_CACHE.clear()
+    quartic = fit_polynomial(fn, lo, hi, x0, degree=4, n=n, exact_at_x0=True)  # type: ignore[arg-type]
+    best = CouplingFit(main=np.asarray(quartic.coef, dtype=float), inner=np.zeros((0, 5)), outer=np.zeros((0, 5)),
+                       shapes=np.zeros((0, 4)), max_error=quartic.max_error, rms_error=quartic.rms_error,
+                       quartic_error=quartic.max_error, condition=1.0, amplitude=0.0, lo=lo, hi=hi, x0=x0)
+    if quartic.max_error <= target or max_inner < 1:
+        _COUPLING_CACHE[key] = best
+        return best
+
+    mid, half = (lo + hi) / 2, (hi - lo) / 2
+    f0 = float(np.asarray(fn(np.array([x0])), dtype=np.float64)[0])
+    xs = _grid(fn, lo, hi, n)  # type: ignore[arg-type]
+    fs = np.asarray(fn(xs), dtype=np.float64) - f0
+    fscale = max(float(np.max(np.abs(fs))), 1e-300)
+    t, t0 = (xs - mid) / half, (x0 - mid) / half
+    ts = _grid(fn, lo, hi, _SEARCH_POINTS)  # type: ignore[arg-type]
+    f_search = (np.asarray(fn(ts), dtype=np.float64) - f0) / fscale
+    t_search = (ts - mid) / half
+    rng = np.random.default_rng(seed)
+
+    def lp(shapes: list[FloatArray], tt: FloatArray, ff: FloatArray):
+        A, norms = _coupling_basis(tt, t0, shapes)
+        scale = np.max(np.abs(A), axis=0)
+        got = _lp_bounded_minimax(A / scale, ff, len(shapes), amplitude)
+        return None if got is None else (got[1], got[0], scale, norms, A / scale)
+
+    def build(shapes: list[FloatArray]) -> CouplingFit | None:
+        got = lp(shapes, t, fs / fscale)
+        if got is None:
+            return None
+        _, a, scale, norms, As = got
+        coef = a / scale * fscale  # coefficients of the unscaled columns, in the function's units
+        main = np.zeros(5)
+        main[0] = f0
+        main[1:] = coef[:4] / half ** np.arange(1, 5)
+        inner, outer, kept = [], [], []
+        for k, shape in enumerate(shapes):
+            b = coef[4 + 3 * k: 7 + 3 * k]
+            h = _shape_values(t, t0, shape) / norms[k]
+            alpha = float(np.max(np.abs(sum(b[j - 2] * h ** j for j in (2, 3, 4)))))
+            if not alpha > 1e-12 * fscale:
+                continue  # this correction is unused: no joints for it
+            inner.append(_shifted_power_series(shape, t0, half) * (alpha / norms[k]))
+            outer.append(np.array([0.0, -1.0, b[0] / alpha ** 2, b[1] / alpha ** 3, b[2] / alpha ** 4]))
+            kept.append(shape)
+        fit = CouplingFit(main=main, inner=np.array(inner).reshape(-1, 5), outer=np.array(outer).reshape(-1, 5),
+                          shapes=np.array(kept).reshape(-1, 4), max_error=0.0, rms_error=0.0,
+                          quartic_error=quartic.max_error, condition=float(np.linalg.cond(As)), amplitude=0.0,
+                          lo=lo, hi=hi, x0=x0)
+        _, d, e = fit.joint_values(check)
+        err = fit(check) - fc
+        amp = float(max(np.ptp(d, axis=1).max(), np.ptp(e, axis=1).max())) if fit.n_inner else 0.0
+        return CouplingFit(**{**fit.__dict__, "max_error": float(np.max(np.abs(err))),
+                              "rms_error": float(np.sqrt(np.mean(err * err))), "amplitude": amp})
+
+    kept_shapes: list[FloatArray] = []
+    for _ in range(max_inner):
+        starts = [_power_shape(c, p) for c, p in COUPLING_STARTS]
+        starts += list(rng.normal(size=(COUPLING_RANDOM_STARTS, 4)))
+        search = _ShapeSearch(t_search, t0, f_search)
+        runs = []
+        for s0 in starts:
+            flat0 = np.concatenate([*kept_shapes, s0 / np.linalg.norm(s0)])
+            search.sw = np.ones_like(f_search)
+            flat = _levenberg_marquardt(search, flat0, _LM_ITERATIONS)
+            r = search.residual(flat)
+            runs.append((float(r @ r), flat, flat0))
+        runs.sort(key=lambda r: r[0])
+        # Lawson's iteration on the best few (least squares reweighted towards minimax), and the
+        # earlier shapes kept as they were with the best new one (an error no larger than K - 1's)
+        candidates = [runs[0][2]] + [r[1] for r in runs[:_POLISHED]]
+        for _, flat, _ in runs[:_POLISHED]:
+            w = np.ones_like(f_search)
+            for _ in range(_LAWSON_ROUNDS):
+                w = w * np.abs(search.error(flat))
+                w = w / max(float(np.mean(w)), 1e-300)
+                search.sw = np.sqrt(w)
+                flat = _levenberg_marquardt(search, flat, _LM_ITERATIONS // 4)
+                candidates.append(flat)
+        scored = []
+        for flat in candidates:
+            shapes = [s / np.linalg.norm(s) for s in flat.reshape(-1, 4)]
+            got = lp(shapes, t_search, f_search)
+            if got is not None:
+                scored.append((got[0], shapes))
+        if not scored:
+            break
+        shapes = min(scored, key=lambda s: s[0])[1]
+        fit = build(shapes)
+        if fit is None or fit.max_error > COUPLING_GAIN * best.max_error:
+            break  # one more inner joint is not worth it
+        best, kept_shapes = fit, shapes
+        if best.max_error <= target:
+            break
+    _COUPLING_CACHE[key] = best
+    return best
