@@ -1228,15 +1228,14 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
 COUPLING_STARTS: tuple[tuple[float, int], ...] = tuple((c, p) for p in (3, 4) for c in (-1.0, -0.5, 0.0, 0.5, 1.0))
 #: Random starting shapes added to those (seeded, so a conversion is reproducible).
 COUPLING_RANDOM_STARTS = 10
-#: Each correction D_k + E_k is a sum of terms whose amplitudes add up to at most this times
-#: max |y - y(x0)|: the extra joints then move about as much as the axis itself, never by
-#: large amounts that cancel (which a free fit of the same quality needs; see fit_coupling).
+#: The terms of each outer joint's correction have amplitudes adding up to at most this times
+#: its axis's max |y - y(x0)|: the extra joints then move about as much as the axis itself,
+#: never by large amounts that cancel (which a free fit of the same error needs; see
+#: fit_couplings).
 COUPLING_AMPLITUDE = 2.0
-#: One more inner joint is added only if it brings the error below this fraction of the last.
+#: An added inner joint is kept only if it brings the error below this fraction of the last.
 COUPLING_GAIN = 0.9
 _SEARCH_POINTS = 401
-#: Fits already made in this process, by a digest of the function's values and the arguments.
-_COUPLING_CACHE: dict[bytes, CouplingFit] = {}
 _LAWSON_ROUNDS = 4
 _LM_ITERATIONS = 200
 _POLISHED = 3
@@ -1246,62 +1245,95 @@ _POLY = np.polynomial.polynomial
 
 
 @dataclass(frozen=True)
-class CouplingFit:
-    """y(x) ≈ main(x) + Σ_k [inner_k(x) + outer_k(inner_k(x))]: a function of x written as a sum
-    of MuJoCo joints along (or about) one axis, each joint following a quartic joint equality.
+class AxisFit:
+    """One axis of a :class:`CouplingFit`: y(x) - y(x0) ≈ main(x) + Σ_{inners l it carries}
+    inner_l(x) + Σ_{(l, c) in outers} c(inner_l(x)).
 
-    * ``main`` (5,): the main joint, a quartic in (x - x0), lowest power first;
-    * ``inner`` (K, 5): inner joint k, a quartic in (x - x0) (driven by x);
-    * ``outer`` (K, 5): outer joint k, a quartic in inner joint k's value (a chained equality).
-
-    ``main[0]`` is fn(x0) and every other constant term is 0, so every extra joint is 0 at x0
-    and the fit is exact there. K = 0 is the plain quartic. ``shapes`` (K, 4) are the inner
-    polynomials' Chebyshev coefficients (T_1..T_4) in t = (x - (lo + hi) / 2) / ((hi - lo) / 2).
-    ``max_error`` / ``rms_error``: realised errors of the sum (units of the function's value) on
-    a grid 8x denser than the fitting grid, plus the function's knots; ``quartic_error``: the
-    plain quartic's worst error; ``condition``: 2-norm condition number of the linear program's
-    column-scaled basis; ``amplitude``: the largest range any extra joint moves through over
-    [lo, hi] (units of the function's value).
+    ``main`` (5,): the axis's main joint, a quartic in (x - x0), lowest power first, ``main[0]``
+    being fn(x0); ``outers``: (inner index l, (5,) quartic coefficients in inner l's value,
+    constant and linear terms 0), each an outer joint on this axis. ``max_error`` /
+    ``rms_error``: realised errors (the function's unit) on a grid 8x denser than the fitting
+    grid; ``quartic_error``: the plain quartic's worst error; ``amplitude``: the largest range
+    an extra joint on this axis moves through over [lo, hi] (0 without extra joints).
     """
 
     main: FloatArray
-    inner: FloatArray
-    outer: FloatArray
-    shapes: FloatArray
+    outers: tuple[tuple[int, FloatArray], ...]
     max_error: float
     rms_error: float
     quartic_error: float
-    condition: float
+    target: float
     amplitude: float
+
+
+@dataclass(frozen=True)
+class CouplingFit:
+    """Several functions of one variable x (the axes of a coordinate's couplings), each a sum of
+    MuJoCo joints following quartic joint equalities; see :func:`fit_couplings`.
+
+    ``inners`` (L, 5): inner joint l, a quartic in (x - x0) with no constant term (driven by x),
+    carried by axis ``hosts[l]``; ``shapes`` (L, 4): the inner polynomials' Chebyshev
+    coefficients (T_1..T_4) in t = (x - (lo + hi) / 2) / ((hi - lo) / 2); ``axes``: one
+    :class:`AxisFit` per function; ``condition``: the largest 2-norm condition number of an
+    axis's column-scaled linear-program basis.
+    """
+
+    inners: FloatArray
+    hosts: tuple[int, ...]
+    shapes: FloatArray
+    axes: tuple[AxisFit, ...]
+    condition: float
     lo: float
     hi: float
     x0: float
 
     @property
     def n_inner(self) -> int:
-        """K, the number of inner/outer joint pairs (0: a plain quartic)."""
-        return int(self.inner.shape[0])
+        """L, the number of inner joints."""
+        return int(self.inners.shape[0])
 
-    def joint_values(self, x: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """(main, inner, outer) joint values at x, shapes x.shape, (K, *x.shape), (K, *x.shape),
-        each evaluated as MuJoCo evaluates its equality."""
+    def inner_values(self, x: ArrayLike) -> FloatArray:
+        """Every inner joint's value at x: (L, *x.shape)."""
         dx = _as_array(x) - self.x0
-        inner = np.array([_POLY.polyval(dx, c) for c in self.inner]).reshape(self.n_inner, *dx.shape)
-        outer = np.array([_POLY.polyval(d, c) for c, d in zip(self.outer, inner, strict=True)]).reshape(inner.shape)
-        return _out(_POLY.polyval(dx, self.main)), inner, outer
+        return np.array([_POLY.polyval(dx, c) for c in self.inners]).reshape(self.n_inner, *dx.shape)
+
+    def joint_values(self, axis: int, x: ArrayLike) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """Axis ``axis``'s joints at x, each evaluated as MuJoCo evaluates its equality: (main,
+        [inner joints it carries], [its outer joints])."""
+        dx = _as_array(x) - self.x0
+        inner = self.inner_values(x)
+        ax = self.axes[axis]
+        hosted = [inner[k] for k in range(self.n_inner) if self.hosts[k] == axis]
+        outers = [_out(_POLY.polyval(inner[k], c)) for k, c in ax.outers]
+        return _out(_POLY.polyval(dx, ax.main)), hosted, outers
+
+    def axis_value(self, axis: int, x: ArrayLike) -> FloatArray:
+        """The sum of axis ``axis``'s joints at x (any shape)."""
+        main, hosted, outers = self.joint_values(axis, x)
+        return _out(main + sum(hosted, np.zeros_like(main)) + sum(outers, np.zeros_like(main)))
 
     def __call__(self, x: ArrayLike) -> FloatArray:
-        """The sum of every joint at x (any shape)."""
-        main, inner, outer = self.joint_values(x)
-        return _out(main + inner.sum(axis=0) + outer.sum(axis=0))
+        """Every axis's value at x: (n_axes, *x.shape)."""
+        return np.array([self.axis_value(a, x) for a in range(len(self.axes))])
 
-    @property
-    def structure(self) -> str:
-        """``quartic`` or e.g. ``quartic + 2 inner quartics, each with an outer quartic``."""
-        if not self.n_inner:
+    def extra_joints(self, axis: int) -> int:
+        """How many joints axis ``axis`` has besides its main joint."""
+        return sum(h == axis for h in self.hosts) + len(self.axes[axis].outers)
+
+    def structure(self, axis: int) -> str:
+        """A short description of axis ``axis``'s joints, e.g. ``quartic + 1 inner + 1 outer quartic``."""
+        ax = self.axes[axis]
+        hosted = sum(h == axis for h in self.hosts)
+        if not hosted and not ax.outers:
             return "quartic"
-        many = "s, each" if self.n_inner > 1 else ""
-        return f"quartic + {self.n_inner} inner quartic{many} with an outer quartic"
+        parts = ["quartic"]
+        if hosted:
+            parts.append(f"{hosted} inner quartic{'s' if hosted > 1 else ''} (a quartic of the coordinate)")
+        if ax.outers:
+            n = len(ax.outers)
+            parts.append(f"{n} outer quartic{'s' if n > 1 else ''} of inner joint{'s' if n > 1 else ''} "
+                         + ", ".join(str(k + 1) for k, _ in ax.outers))
+        return " + ".join(parts)
 
 
 def _shape_values(t: FloatArray, t0: float, shape: FloatArray) -> FloatArray:
@@ -1310,85 +1342,95 @@ def _shape_values(t: FloatArray, t0: float, shape: FloatArray) -> FloatArray:
     return _CHEB.chebval(t, c) - _CHEB.chebval(t0, c)
 
 
-def _coupling_basis(t: FloatArray, t0: float, shapes: Sequence[FloatArray]) -> tuple[FloatArray, FloatArray]:
-    """Columns (m, 4 + 3K) of the fit at t: (t - t0)^j, j = 1..4 (the main quartic), then for each
-    inner shape h_k^j, j = 2..4, with h_k scaled to at most 1 in magnitude (h_k^1 is a quartic
-    vanishing at t0, already in the main quartic's span). Returns the columns and the scales
-    N_k of the h_k."""
+def _unit_shape(t: FloatArray, t0: float, shape: FloatArray) -> tuple[FloatArray, float]:
+    """The inner polynomial on t scaled to at most 1 in magnitude, and the scale N."""
+    h = _shape_values(t, t0, shape)
+    nk = max(float(np.max(np.abs(h))), 1e-300)
+    return h / nk, nk
+
+
+def _axis_basis(t: FloatArray, t0: float, hs: Sequence[FloatArray]) -> FloatArray:
+    """Columns (m, 4 + 3K) of one axis's fit at t: (t - t0)^j, j = 1..4 (the main quartic), then
+    h_k^j, j = 2..4, for each inner shape h_k it has an outer joint of (h_k^1 is a quartic
+    vanishing at t0, already in the main quartic's span)."""
     v = t - t0
-    cols = [v ** j for j in range(1, 5)]
-    norms = []
-    for shape in shapes:
-        h = _shape_values(t, t0, shape)
-        nk = max(float(np.max(np.abs(h))), 1e-300)
-        norms.append(nk)
-        h = h / nk
-        cols += [h ** j for j in (2, 3, 4)]
-    return np.stack(cols, axis=1), np.array(norms)
+    cols = [v ** j for j in range(1, 5)] + [h ** j for h in hs for j in (2, 3, 4)]
+    return np.stack(cols, axis=1)
 
 
 class _ShapeSearch:
-    """Variable projection for the inner shapes: for shapes θ (K, 4) (Chebyshev coefficients of
-    T_1..T_4 in t), the weighted least-squares residual of the best linear coefficients, and its
-    Jacobian in Kaufman's approximation, for a Levenberg-Marquardt search. ``weights`` (m,)
-    turns least squares towards minimax (Lawson's iteration)."""
+    """Variable projection for the inner shapes: for shapes θ (L, 4) (Chebyshev coefficients of
+    T_1..T_4 in t, each scaled by |θ_l|, which the fit does not depend on), the weighted
+    least-squares residuals of every axis's best linear coefficients, stacked, and their
+    Jacobian in Kaufman's approximation, for a Levenberg-Marquardt search. ``sw`` (per axis,
+    (m,)) turns least squares towards minimax (Lawson's iteration)."""
 
-    def __init__(self, t: FloatArray, t0: float, f: FloatArray):
+    def __init__(self, t: FloatArray, t0: float, fs: Sequence[FloatArray], uses: Sequence[Sequence[int]]):
         self.V = np.stack([(t - t0) ** j for j in range(1, 5)], axis=1)
         self.phi = np.stack([_CHEB.chebval(t, np.eye(5)[i]) - _CHEB.chebval(t0, np.eye(5)[i])
                              for i in range(1, 5)], axis=1)
-        self.f = f
-        self.sw = np.ones_like(f)
+        self.fs = [np.asarray(f, dtype=float) for f in fs]
+        self.uses = [list(u) for u in uses]
+        self.sw = [np.ones_like(f) for f in self.fs]
         self._key: bytes | None = None
 
     def _solve(self, flat: FloatArray) -> None:
-        key = flat.tobytes() + self.sw.tobytes()
+        key = flat.tobytes() + b"".join(w.tobytes() for w in self.sw)
         if key == self._key:
             return
         th = flat.reshape(-1, 4)
         norms = np.maximum(np.linalg.norm(th, axis=1), 1e-300)
-        H = (self.phi @ th.T) / norms  # (m, K): the shapes, scaled by |θ_k| (the fit does not depend on it)
-        cols = [self.V] + [np.stack([H[:, k] ** j for j in (2, 3, 4)], axis=1) for k in range(H.shape[1])]
-        A = np.hstack(cols)
-        scale = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
-        As = A * self.sw[:, None] / scale
-        U, S, Vt = np.linalg.svd(As, full_matrices=False)
-        r = int(np.sum(S > S[0] * 1e-12))
-        self.U = U[:, :r]
-        b = self.sw * self.f
-        self.c = (Vt[:r].T @ ((self.U.T @ b) / S[:r])) / scale  # coefficients of the unscaled columns
-        self.H, self.A, self.th, self.norms = H, A, th, norms
-        self.res = self.sw * (A @ self.c - self.f)
+        H = (self.phi @ th.T) / norms  # (m, L)
+        self.H, self.th, self.norms = H, th, norms
+        self.parts = []
+        for f, u, sw in zip(self.fs, self.uses, self.sw, strict=True):
+            A = np.hstack([self.V] + [np.stack([H[:, k] ** j for j in (2, 3, 4)], axis=1) for k in u])
+            scale = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
+            U, S, Vt = np.linalg.svd(A * sw[:, None] / scale, full_matrices=False)
+            r = int(np.sum(S > S[0] * 1e-12))
+            U, S, Vt = U[:, :r], S[:r], Vt[:r]
+            c = (Vt.T @ ((U.T @ (sw * f)) / S)) / scale  # coefficients of the unscaled columns
+            self.parts.append((A, U, S, Vt, scale, c, sw * (A @ c - f)))
         self._key = key
 
     def residual(self, flat: FloatArray) -> FloatArray:
         self._solve(flat)
-        return self.res.copy()  # the caller may change it in place
+        return np.concatenate([p[-1] for p in self.parts])  # a new array: the caller may change it
 
-    def error(self, flat: FloatArray) -> FloatArray:
-        """The unweighted residual A c - f."""
+    def errors(self, flat: FloatArray) -> list[FloatArray]:
+        """Each axis's unweighted residual A c - f."""
         self._solve(flat)
-        return self.A @ self.c - self.f  # a new array
+        return [p[0] @ p[5] - f for p, f in zip(self.parts, self.fs, strict=True)]
 
     def jac(self, flat: FloatArray) -> FloatArray:
+        """d residual / d θ, (Σ m, 4L): Golub and Pereyra's variable-projection derivative,
+        P⊥ dA c - A⁺ᵀ dAᵀ r (r = A c - f), for the weighted, column-scaled basis."""
         self._solve(flat)
-        K = self.H.shape[1]
-        J = np.empty((self.f.size, 4 * K))
-        for k in range(K):
-            b = self.c[4 + 3 * k: 7 + 3 * k]
-            h = self.H[:, k]
-            dh = b[0] * 2 * h + b[1] * 3 * h ** 2 + b[2] * 4 * h ** 3  # d(correction)/dh
-            unit = self.th[k] / self.norms[k]
-            dh_dth = (self.phi - h[:, None] * unit[None, :]) / self.norms[k]  # h = φ θ / |θ|
-            g = (self.sw * dh)[:, None] * dh_dth  # (m, 4)
-            J[:, 4 * k: 4 * k + 4] = g - self.U @ (self.U.T @ g)
-        return J
+        L = self.H.shape[1]
+        blocks = []
+        for (_, U, S, Vt, scale, c, res), u, sw in zip(self.parts, self.uses, self.sw, strict=True):
+            J = np.zeros((sw.size, 4 * L))
+            for i, k in enumerate(u):
+                cols = slice(4 + 3 * i, 7 + 3 * i)
+                b = c[cols]
+                h = self.H[:, k]
+                unit = self.th[k] / self.norms[k]
+                dh_dth = (self.phi - h[:, None] * unit[None, :]) / self.norms[k]  # h = φ θ / |θ|, (m, 4)
+                dcol = np.stack([sw * j * h ** (j - 1) for j in (2, 3, 4)], axis=1)  # d(weighted column)/dh
+                g = (dcol @ b)[:, None] * dh_dth  # dA c, (m, 4)
+                first = g - U @ (U.T @ g)
+                # A⁺ᵀ dAᵀ r: dA has nonzero columns only at this outer's 3 columns
+                dAt_r = (dcol * res[:, None]).T @ dh_dth / scale[cols][:, None]  # (3, 4)
+                second = U @ ((Vt[:, cols] @ dAt_r) / S[:, None])
+                J[:, 4 * k: 4 * k + 4] += first - second
+            blocks.append(J)
+        return np.vstack(blocks)
 
 
 def _levenberg_marquardt(search: _ShapeSearch, x: FloatArray, iterations: int) -> FloatArray:
     """Minimise |search.residual(x)|^2 from x by Levenberg-Marquardt (Marquardt's diagonal
-    scaling). Written out rather than scipy's MINPACK, whose steps differ in the last bit from run
-    to run, which a search over many local minima turns into different fits of one model."""
+    scaling). Written out rather than scipy's MINPACK, whose steps differ in the last bit from
+    run to run, which a search over many local minima turns into different fits of one model."""
     r, J = search.residual(x), search.jac(x)
     cost, lam = float(r @ r), 1e-3
     for _ in range(iterations):
@@ -1416,23 +1458,23 @@ def _levenberg_marquardt(search: _ShapeSearch, x: FloatArray, iterations: int) -
     return x
 
 
-def _lp_bounded_minimax(A: FloatArray, f: FloatArray, n_inner: int, bound: float) -> tuple[FloatArray, float] | None:
-    """min_a max |A a - f| with Σ_j |a_kj| <= bound for each correction k (the 3 columns of inner
-    shape k after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None."""
+def _lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float) -> tuple[FloatArray, float] | None:
+    """min_a max |A a - f| with Σ_j |a_kj| <= bound for each outer k (the 3 columns of outer k
+    after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None."""
     from scipy.optimize import linprog
 
     m, n = A.shape
-    nb = 3 * n_inner
-    sel = np.zeros((nb, n))
-    sel[:, 4:] = np.eye(nb)
-    groups = np.kron(np.eye(n_inner), np.ones((1, 3))) if n_inner else np.zeros((0, 0))
-    ones, zb = np.ones((m, 1)), np.zeros((m, nb))
-    rows = [np.hstack([A, zb, -ones]), np.hstack([-A, zb, -ones])]
+    nb = 3 * n_outer
+    ones = np.ones((m, 1))
+    rows = [np.hstack([A, np.zeros((m, nb)), -ones]), np.hstack([-A, np.zeros((m, nb)), -ones])]
     rhs = [f, -f]
     if nb:
-        rows += [np.hstack([sel, -np.eye(nb), np.zeros((nb, 1))]), np.hstack([-sel, -np.eye(nb), np.zeros((nb, 1))]),
-                 np.hstack([np.zeros((n_inner, n)), groups, np.zeros((n_inner, 1))])]
-        rhs += [np.zeros(2 * nb), np.full(n_inner, bound)]
+        sel = np.zeros((nb, n))
+        sel[:, 4:] = np.eye(nb)
+        zero = np.zeros((nb, 1))
+        rows += [np.hstack([sel, -np.eye(nb), zero]), np.hstack([-sel, -np.eye(nb), zero]),
+                 np.hstack([np.zeros((n_outer, n)), np.kron(np.eye(n_outer), np.ones((1, 3))), np.zeros((n_outer, 1))])]
+        rhs += [np.zeros(2 * nb), np.full(n_outer, bound)]
     cost = np.zeros(n + nb + 1)
     cost[-1] = 1.0
     res = linprog(cost, A_ub=np.vstack(rows), b_ub=np.concatenate(rhs),
@@ -1461,150 +1503,227 @@ def _shifted_power_series(cheb_shape: FloatArray, t0: float, half: float) -> Flo
     return shifted / half ** np.arange(5)
 
 
-def fit_coupling(fn: Callable[[FloatArray], FloatArray], lo: float, hi: float, x0: float, *,
-                 target: float, max_inner: int = 3, n: int = 2001,
-                 amplitude: float = COUPLING_AMPLITUDE, seed: int = 0) -> CouplingFit:
-    """Approximate fn on [lo, hi] by a sum of joints, each following a quartic joint equality.
+#: Fits already made in this process, by a digest of the functions' values and the arguments.
+_COUPLING_CACHE: dict[bytes, CouplingFit] = {}
 
-    What: y(x) - y(x0) ≈ C(x) + Σ_{k=1..K} (D_k(x) + E_k(D_k(x))), where C is a quartic in
-    (x - x0) (the main joint), D_k a quartic in (x - x0) (an inner joint driven by x) and E_k a
-    quartic in D_k (an outer joint driven by the inner one: a chain of two equalities). Every
-    piece is 0 at x0, so the sum is exact there and the reference pose satisfies every equality.
+
+def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, hi: float, x0: float, *,
+                  targets: Sequence[float], uses: Sequence[Sequence[int]], hosts: Sequence[int],
+                  start_shapes: ArrayLike = (), n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
+                  seed: int = 0) -> CouplingFit:
+    """Approximate functions y_a of one variable x on [lo, hi] (the coupled axes of one
+    coordinate) by sums of MuJoCo joints, each joint following a quartic joint equality.
+
+    What: L inner joints D_l(x) = α_l h_l(x), each a quartic in (x - x0) (driven by x) and
+    carried by axis ``hosts[l]``; axis a has a main joint C_a, a quartic in (x - x0), and for
+    each l in ``uses[a]`` an outer joint E_al, a quartic in D_l (driven by it: a chain). So
+
+        y_a(x) - y_a(x0) ≈ C_a(x) + Σ_{l: hosts[l] = a} D_l(x) + Σ_{l in uses[a]} E_al(D_l(x)).
+
+    Every joint but C_a is 0 at x0 and C_a(x0) = 0 after y_a(x0), so the sums are exact at x0
+    and the reference pose satisfies every equality.
 
     Why: a MuJoCo joint equality (``mjEQ_JOINT``) is a quartic, so one joint cannot follow a
     spline closely (about 0.25 mm on a knee translation). Joints of one body along the same
     axis add up (slides sum their translations, hinges about one axis through one point their
-    angles), and a quartic of a quartic reaches degree 16.
+    angles), and a quartic of a quartic reaches degree 16. MuJoCo allows at most 6 degrees of
+    freedom per body, so inner joints are shared: one inner joint can drive outer joints on
+    several axes, also on other bodies (a knee's inner joint drives the patella's outers).
 
-    How: for fixed inner shapes h_k (D_k / α_k, scaled to at most 1), y is linear in the
-    remaining coefficients (the main quartic's and b_kj of h_k^j, j = 2..4), so the minimax fit
-    is one linear program, on column-scaled variables, with each correction's Σ_j |b_kj| held
-    to ``amplitude`` times max |y - y(x0)|. The bound matters: with fixed shapes (t - c_k)^p a
-    free fit reaches the same error only with joints moving metres (or turns) in opposite
+    How: for fixed inner shapes h_l (scaled to at most 1 in magnitude), each y_a is linear in
+    its remaining coefficients (the main quartic's and b_alj of h_l^j, j = 2..4), so its minimax
+    fit is one linear program, on column-scaled variables, with each outer's Σ_j |b_alj| held
+    to ``amplitude`` times max |y_a - y_a(x0)|. The bound matters: with fixed shapes (x - c)^p a
+    free fit reaches its error only with joints moving metres (or turns) in opposite
     directions to sum to millimetres (a degree-16 polynomial written in a poorly conditioned
-    basis), which a simulation cannot follow. The inner shapes are chosen by a least-squares
-    search (variable projection, Levenberg-Marquardt) started from (t - c)^p for the shifts and
-    degrees in :data:`COUPLING_STARTS` and a few seeded random shapes, adding one inner joint
-    at a time and keeping the earlier ones as a start. The joints are then C = the main quartic,
-    D_k = α_k h_k with α_k = max |Σ_j b_kj h_k^j|, E_k = -D_k + Σ_j b_kj (D_k / α_k)^j, so that
-    D_k + E_k is the k-th correction, C alone stays close to the plain quartic and dE_k/dD_k is of
-    order 1.
+    basis), which a simulation cannot follow. The shapes are found by a least-squares search
+    (variable projection, Levenberg-Marquardt), from ``start_shapes`` (the first inners' shapes,
+    e.g. a smaller structure's), for each further inner from (t - c)^p for the shifts and
+    degrees of :data:`COUPLING_STARTS` and seeded random shapes, adding one inner at a time;
+    the best few are reweighted towards minimax (Lawson's iteration) and scored by their linear
+    programs (worst error relative to ``targets``). Then C_a is the main quartic minus the inner
+    joints axis a carries, α_l the largest correction term of its host axis (or of its other
+    axes), and E_al = Σ_j b_alj (D_l / α_l)^j.
 
-    Which structure: K = 0 (the plain quartic of :func:`fit_polynomial`) when its error is at
-    most ``target``; otherwise K = 1, 2, ... ``max_inner``, stopping at the first K that meets
-    ``target`` (fewest extra joints), and only as long as each inner joint brings the error
-    below :data:`COUPLING_GAIN` times the last; so the error never grows with ``max_inner``.
-    ``max_error`` is the realised error (every joint evaluated as MuJoCo evaluates its
-    equality) on a grid 8x denser than the fitting grid.
-
-    Units: x in the driving coordinate's unit (rad or m), y and ``target`` in the function's.
+    Units: x in the driving coordinate's unit (rad or m); y_a and ``targets[a]`` in axis a's.
     """
     lo, hi, x0 = float(lo), float(hi), float(x0)
+    n_axes, L = len(fns), len(hosts)
     if not hi > lo:
-        raise ValueError(f"fit_coupling needs hi > lo, got [{lo}, {hi}]")
+        raise ValueError(f"fit_couplings needs hi > lo, got [{lo}, {hi}]")
     if not lo <= x0 <= hi:
-        raise ValueError(f"fit_coupling needs lo <= x0 <= hi, got x0 = {x0} outside [{lo}, {hi}]")
-    check = _grid(fn, lo, hi, 8 * (n - 1) + 1)  # type: ignore[arg-type]
-    fc = np.asarray(fn(check), dtype=np.float64)
-    # everything below sees fn only through its values on this grid (which holds the others)
-    key = hashlib.sha256(np.concatenate([check, fc, [lo, hi, x0, target, max_inner, n, amplitude, seed]])
-                         .tobytes()).digest()
+        raise ValueError(f"fit_couplings needs lo <= x0 <= hi, got x0 = {x0} outside [{lo}, {hi}]")
+    if len(targets) != n_axes or len(uses) != n_axes:
+        raise ValueError("fit_couplings needs one target and one list of used inners per function")
+    if any(not 0 <= h < n_axes for h in hosts) or any(not 0 <= k < L for u in uses for k in u):
+        raise ValueError("fit_couplings: hosts must name axes and uses must name inner joints")
+    start = np.asarray(start_shapes, dtype=float).reshape(-1, 4)
+    if start.shape[0] > L:
+        raise ValueError("fit_couplings: more start shapes than inner joints")
+
+    knots = [np.asarray(getattr(fn, "knots", np.empty(0)), dtype=float) for fn in fns]
+
+    def grid(m: int) -> FloatArray:
+        xs = np.linspace(lo, hi, m)
+        k = np.concatenate([xs, *knots])
+        return np.unique(k[(k >= lo) & (k <= hi)])
+
+    check = grid(8 * (n - 1) + 1)
+    fc = [np.asarray(fn(check), dtype=np.float64) for fn in fns]
+    # everything below sees the functions only through their values on this grid (which holds the others)
+    key = hashlib.sha256(b"".join([check.tobytes(), *(f.tobytes() for f in fc), start.tobytes(),
+                                   np.array([lo, hi, x0, n, amplitude, seed, *targets, *hosts]).tobytes(),
+                                   repr([list(u) for u in uses]).encode()])).digest()
     if key in _COUPLING_CACHE:
         return _COUPLING_CACHE[key]
     if len(_COUPLING_CACHE) > 256:
         _COUPLING_CACHE.clear()
-    quartic = fit_polynomial(fn, lo, hi, x0, degree=4, n=n, exact_at_x0=True)  # type: ignore[arg-type]
-    best = CouplingFit(main=np.asarray(quartic.coef, dtype=float), inner=np.zeros((0, 5)), outer=np.zeros((0, 5)),
-                       shapes=np.zeros((0, 4)), max_error=quartic.max_error, rms_error=quartic.rms_error,
-                       quartic_error=quartic.max_error, condition=1.0, amplitude=0.0, lo=lo, hi=hi, x0=x0)
-    if quartic.max_error <= target or max_inner < 1:
-        _COUPLING_CACHE[key] = best
-        return best
 
+    quartics = [fit_polynomial(fn, lo, hi, x0, degree=4, n=n, exact_at_x0=True) for fn in fns]  # type: ignore[arg-type]
+    f0 = [float(np.asarray(fn(np.array([x0])), dtype=np.float64)[0]) for fn in fns]
     mid, half = (lo + hi) / 2, (hi - lo) / 2
-    f0 = float(np.asarray(fn(np.array([x0])), dtype=np.float64)[0])
-    xs = _grid(fn, lo, hi, n)  # type: ignore[arg-type]
-    fs = np.asarray(fn(xs), dtype=np.float64) - f0
-    fscale = max(float(np.max(np.abs(fs))), 1e-300)
-    t, t0 = (xs - mid) / half, (x0 - mid) / half
-    ts = _grid(fn, lo, hi, _SEARCH_POINTS)  # type: ignore[arg-type]
-    f_search = (np.asarray(fn(ts), dtype=np.float64) - f0) / fscale
-    t_search = (ts - mid) / half
+    t0 = (x0 - mid) / half
+    xs = grid(n)
+    t = (xs - mid) / half
+    fs = [np.asarray(fn(xs), dtype=np.float64) - c for fn, c in zip(fns, f0, strict=True)]
+    fscale = [max(float(np.max(np.abs(f))), 1e-300) for f in fs]
+    weight = [1.0 / max(float(tg), 1e-9 * q.max_error, 1e-300) for tg, q in zip(targets, quartics, strict=True)]
+    ts_x = grid(_SEARCH_POINTS)
+    ts = (ts_x - mid) / half
+    f_search = [(np.asarray(fn(ts_x), dtype=np.float64) - c) * w for fn, c, w in zip(fns, f0, weight, strict=True)]
+
+    def lp(shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], axis_uses):
+        """Per axis: (worst error relative to its target, LP coefficients, column scales, cond)."""
+        hs = [_unit_shape(tt, t0, s)[0] for s in shapes]
+        out = []
+        for a, f in enumerate(ff):
+            A = _axis_basis(tt, t0, [hs[k] for k in axis_uses[a]])
+            scale = np.max(np.abs(A), axis=0)
+            fsa = max(float(np.max(np.abs(f))), 1e-300)
+            got = _lp_bounded_minimax(A / scale, f / fsa, len(axis_uses[a]), amplitude)
+            if got is None:
+                return None
+            out.append((got[1] * fsa, got[0] * fsa, scale, float(np.linalg.cond(A / scale))))
+        return out
+
+    def score(shapes, axis_uses) -> float:
+        got = lp(shapes, ts, f_search, axis_uses)  # f_search is in units of each target already
+        return math.inf if got is None else max(g[0] for g in got)
+
     rng = np.random.default_rng(seed)
-
-    def lp(shapes: list[FloatArray], tt: FloatArray, ff: FloatArray):
-        A, norms = _coupling_basis(tt, t0, shapes)
-        scale = np.max(np.abs(A), axis=0)
-        got = _lp_bounded_minimax(A / scale, ff, len(shapes), amplitude)
-        return None if got is None else (got[1], got[0], scale, norms, A / scale)
-
-    def build(shapes: list[FloatArray]) -> CouplingFit | None:
-        got = lp(shapes, t, fs / fscale)
-        if got is None:
-            return None
-        _, a, scale, norms, As = got
-        coef = a / scale * fscale  # coefficients of the unscaled columns, in the function's units
-        main = np.zeros(5)
-        main[0] = f0
-        main[1:] = coef[:4] / half ** np.arange(1, 5)
-        inner, outer, kept = [], [], []
-        for k, shape in enumerate(shapes):
-            b = coef[4 + 3 * k: 7 + 3 * k]
-            h = _shape_values(t, t0, shape) / norms[k]
-            alpha = float(np.max(np.abs(sum(b[j - 2] * h ** j for j in (2, 3, 4)))))
-            if not alpha > 1e-12 * fscale:
-                continue  # this correction is unused: no joints for it
-            inner.append(_shifted_power_series(shape, t0, half) * (alpha / norms[k]))
-            outer.append(np.array([0.0, -1.0, b[0] / alpha ** 2, b[1] / alpha ** 3, b[2] / alpha ** 4]))
-            kept.append(shape)
-        fit = CouplingFit(main=main, inner=np.array(inner).reshape(-1, 5), outer=np.array(outer).reshape(-1, 5),
-                          shapes=np.array(kept).reshape(-1, 4), max_error=0.0, rms_error=0.0,
-                          quartic_error=quartic.max_error, condition=float(np.linalg.cond(As)), amplitude=0.0,
-                          lo=lo, hi=hi, x0=x0)
-        _, d, e = fit.joint_values(check)
-        err = fit(check) - fc
-        amp = float(max(np.ptp(d, axis=1).max(), np.ptp(e, axis=1).max())) if fit.n_inner else 0.0
-        return CouplingFit(**{**fit.__dict__, "max_error": float(np.max(np.abs(err))),
-                              "rms_error": float(np.sqrt(np.mean(err * err))), "amplitude": amp})
-
-    kept_shapes: list[FloatArray] = []
-    for _ in range(max_inner):
-        starts = [_power_shape(c, p) for c, p in COUPLING_STARTS]
-        starts += list(rng.normal(size=(COUPLING_RANDOM_STARTS, 4)))
-        search = _ShapeSearch(t_search, t0, f_search)
+    shapes = [s / np.linalg.norm(s) for s in start]
+    stages = list(range(len(shapes), L)) or ([L - 1] if L else [])
+    for stage in stages:
+        k_all = stage + 1
+        axis_uses = [[k for k in u if k < k_all] for u in uses]
+        search = _ShapeSearch(ts, t0, f_search, axis_uses)
+        if len(shapes) >= k_all:
+            starts = [np.zeros(0)]  # polish the given shapes
+        else:
+            starts = [_power_shape(c, p) for c, p in COUPLING_STARTS]
+            starts += list(rng.normal(size=(COUPLING_RANDOM_STARTS, 4)))
         runs = []
         for s0 in starts:
-            flat0 = np.concatenate([*kept_shapes, s0 / np.linalg.norm(s0)])
-            search.sw = np.ones_like(f_search)
+            flat0 = np.concatenate([*shapes[:k_all], s0 / max(float(np.linalg.norm(s0)), 1e-300)] if s0.size
+                                   else shapes[:k_all])
+            search.sw = [np.ones_like(f) for f in f_search]
             flat = _levenberg_marquardt(search, flat0, _LM_ITERATIONS)
             r = search.residual(flat)
             runs.append((float(r @ r), flat, flat0))
+        # every result scored by its linear programs; the best few then reweighted towards
+        # minimax (Lawson); the earlier shapes kept as they were with the best new one are a
+        # candidate too (its error is no larger than the smaller structure's)
         runs.sort(key=lambda r: r[0])
-        # Lawson's iteration on the best few (least squares reweighted towards minimax), and the
-        # earlier shapes kept as they were with the best new one (an error no larger than K - 1's)
-        candidates = [runs[0][2]] + [r[1] for r in runs[:_POLISHED]]
-        for _, flat, _ in runs[:_POLISHED]:
-            w = np.ones_like(f_search)
-            for _ in range(_LAWSON_ROUNDS):
-                w = w * np.abs(search.error(flat))
-                w = w / max(float(np.mean(w)), 1e-300)
-                search.sw = np.sqrt(w)
+
+        def unit_rows(flat: FloatArray) -> list[FloatArray]:
+            c = flat.reshape(-1, 4)
+            return list(c / np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None])
+
+        scored = [(score(unit_rows(f), axis_uses), i, f) for i, f in
+                  enumerate([runs[0][2]] + [r[1] for r in runs])]
+        scored.sort(key=lambda z: (z[0], z[1]))
+        for _, _, flat in list(scored[:_POLISHED]):
+            ws = [np.ones_like(f) for f in f_search]
+            for j in range(_LAWSON_ROUNDS):
+                ws = [w * np.abs(e) for w, e in zip(ws, search.errors(flat), strict=True)]
+                top = max(max(float(np.max(w)) for w in ws), 1e-300)
+                ws = [w / top for w in ws]
+                search.sw = [np.sqrt(w) for w in ws]
                 flat = _levenberg_marquardt(search, flat, _LM_ITERATIONS // 4)
-                candidates.append(flat)
-        scored = []
-        for flat in candidates:
-            shapes = [s / np.linalg.norm(s) for s in flat.reshape(-1, 4)]
-            got = lp(shapes, t_search, f_search)
-            if got is not None:
-                scored.append((got[0], shapes))
-        if not scored:
+                scored.append((score(unit_rows(flat), axis_uses), len(scored) + j, flat))
+        best_flat = min(scored, key=lambda z: (z[0], z[1]))[2]
+        shapes = unit_rows(best_flat)
+
+    # final fit on the full grid
+    got = lp(shapes, t, fs, [list(u) for u in uses]) if L else None
+    if L and got is None:
+        raise ValueError("fit_couplings: the linear program failed")
+    units = [_unit_shape(t, t0, s) for s in shapes]
+    inner_poly = [_shifted_power_series(s, t0, half) / nk for s, (_, nk) in zip(shapes, units, strict=True)]
+    corrections: dict[tuple[int, int], tuple[FloatArray, float]] = {}  # (axis, inner): (b (3,), max |g|)
+    mains = []
+    conds = [1.0]
+    for a in range(n_axes):
+        main = np.zeros(5)
+        main[0] = f0[a]
+        if L:
+            _, coef, scale, cond = got[a]  # type: ignore[index]
+            coef = coef / scale
+            conds.append(cond)
+            main[1:] = coef[:4] / half ** np.arange(1, 5)
+            for i, k in enumerate(uses[a]):
+                b = coef[4 + 3 * i: 7 + 3 * i]
+                g = sum(b[j - 2] * units[k][0] ** j for j in (2, 3, 4))
+                corrections[(a, k)] = (b, float(np.max(np.abs(g))))
+        else:
+            main = np.asarray(quartics[a].coef, dtype=float).copy()
+        mains.append(main)
+    alphas = []
+    for k in range(L):
+        host = hosts[k]
+        own = corrections.get((host, k), (None, 0.0))[1]
+        other = max([corrections[(a, k)][1] * fscale[host] / fscale[a] for a in range(n_axes) if (a, k) in corrections],
+                    default=0.0)
+        alphas.append(own if own > 1e-12 * fscale[host] else max(other, 1e-3 * fscale[host]))
+    inners = np.array([p * al for p, al in zip(inner_poly, alphas, strict=True)]).reshape(-1, 5)
+    for k in range(L):
+        mains[hosts[k]] = mains[hosts[k]] - inners[k]  # the host's main joint makes up for the inner joint
+    outers_by_axis: list[list[tuple[int, FloatArray]]] = [[] for _ in range(n_axes)]
+    for (a, k), (b, _) in sorted(corrections.items()):
+        al = alphas[k]
+        outers_by_axis[a].append((k, np.array([0.0, 0.0, b[0] / al ** 2, b[1] / al ** 3, b[2] / al ** 4])))
+    draft = CouplingFit(inners=inners, hosts=tuple(int(h) for h in hosts), shapes=np.array(shapes).reshape(-1, 4),
+                        axes=tuple(AxisFit(mains[a], tuple(outers_by_axis[a]), 0.0, 0.0, quartics[a].max_error,
+                                           float(targets[a]), 0.0) for a in range(n_axes)),
+                        condition=float(max(conds)), lo=lo, hi=hi, x0=x0)
+    axes = []
+    for a in range(n_axes):
+        err = draft.axis_value(a, check) - fc[a]
+        _, hosted, outers = draft.joint_values(a, check)
+        amp = max([float(np.ptp(v)) for v in hosted + outers], default=0.0)
+        axes.append(AxisFit(mains[a], tuple(outers_by_axis[a]), float(np.max(np.abs(err))),
+                            float(np.sqrt(np.mean(err * err))), quartics[a].max_error, float(targets[a]), amp))
+    fit = CouplingFit(**{**draft.__dict__, "axes": tuple(axes)})
+    _COUPLING_CACHE[key] = fit
+    return fit
+
+
+def fit_coupling(fn: Callable[[FloatArray], FloatArray], lo: float, hi: float, x0: float, *,
+                 target: float, max_inner: int = 3, n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
+                 seed: int = 0) -> CouplingFit:
+    """One function as a sum of joints (:func:`fit_couplings` with one axis carrying all its inner
+    joints): the plain quartic when its error is at most ``target``; otherwise K = 1, 2, ...
+    ``max_inner`` inner/outer pairs, each K starting from K - 1's shapes, stopping at the first
+    K that meets ``target`` (fewest extra joints), and only as long as each pair brings the
+    error below :data:`COUPLING_GAIN` times the last; so the error never grows with
+    ``max_inner``. Units as :func:`fit_couplings`."""
+    best = fit_couplings([fn], lo, hi, x0, targets=[target], uses=[[]], hosts=[], n=n, amplitude=amplitude, seed=seed)
+    for k in range(1, max_inner + 1):
+        if best.axes[0].max_error <= target:
             break
-        shapes = min(scored, key=lambda s: s[0])[1]
-        fit = build(shapes)
-        if fit is None or fit.max_error > COUPLING_GAIN * best.max_error:
-            break  # one more inner joint is not worth it
-        best, kept_shapes = fit, shapes
-        if best.max_error <= target:
+        fit = fit_couplings([fn], lo, hi, x0, targets=[target], uses=[list(range(k))], hosts=[0] * k,
+                            start_shapes=best.shapes, n=n, amplitude=amplitude, seed=seed)
+        if fit.axes[0].max_error > COUPLING_GAIN * best.axes[0].max_error:
             break
-    _COUPLING_CACHE[key] = best
+        best = fit
     return best
