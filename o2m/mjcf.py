@@ -58,11 +58,15 @@ _LINEAR_SAMPLES = 401
 COUPLING_TARGET = {"m": 1e-5, "rad": float(np.deg2rad(0.005))}
 #: Degrees of freedom MuJoCo allows one body ("more than 6 dofs in body" otherwise).
 MAX_BODY_DOFS = 6
-#: Armature of each extra joint of a coupled axis (kg for a slide, kg m² for a hinge). Several
-#: joints along one axis of one body make the mass matrix singular without it; the extra joints
-#: move a few millimetres (or a few hundredths of a radian) over their coordinate's range, so
-#: this adds little to the coordinate's inertia (the report gives the worst case).
-COUPLING_ARMATURE = {"slide": 0.01, "hinge": 1e-4}
+#: Armature of each extra joint of a coupled axis, as a multiple of its main joint's own inertia
+#: at the reference pose (the mass, or moment of inertia about the axis, of everything the joint
+#: moves). Several joints along one axis of one body make the mass matrix singular without
+#: armature, and an armature much lighter than the body makes their equalities soft: in
+#: Gait2354 hanging under gravity, 0.01 kg let the knee translations sag 0.2 mm off their
+#: equalities, the body's own inertia (5.3 kg) 0.01 mm, as the plain quartic's single joint.
+#: The extra joints move a few millimetres (or a few hundredths of a radian) over their
+#: coordinate's range, so this adds little to the coordinate's inertia (the report gives it).
+COUPLING_ARMATURE = 1.0
 
 
 @dataclass
@@ -178,6 +182,8 @@ class MjcfBuilder:
         self._joint_frames: dict[str, tuple[mujoco.MjsBody, mujoco.mjtJoint, np.ndarray, np.ndarray]] = {}
         #: Records of the extra joints made for a coupled joint, listed after it.
         self._extra_records: dict[str, list[JointRecord]] = {}
+        #: The extra joints of each coupled joint, by its name.
+        self._extras_of: dict[str, list[str]] = {}
         #: The fitted couplings of the skeleton's coupled axes, by MuJoCo joint name.
         self._planned: dict[str, _PlannedAxis] = {}
 
@@ -298,6 +304,7 @@ class MjcfBuilder:
         for c in self.skel.coordinates.values():
             if c.locked:
                 self.result.notes.append(f"locked coordinate '{c.name}' folded into fixed transforms at {c.default:g}")
+        self._set_extra_armature()
         for marker in self.skel.markers:
             body = self.bodies[marker.body]
             pos = marker.position if marker.body != "ground" else OSIM_TO_MJ @ marker.position
@@ -458,6 +465,43 @@ class MjcfBuilder:
             for i, a in enumerate(group):
                 self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi)
 
+    def _set_extra_armature(self) -> None:
+        """Give every extra joint of a coupled axis :data:`COUPLING_ARMATURE` times the main
+        joint's own inertia at the reference pose (the skeleton compiled as built so far), and
+        add to each axis's approximation how much its extra joints add to the inertia of its
+        coordinate at most: Σ armature (d joint / d coordinate)² over the coordinate's range."""
+        mains = self._extras_of
+        if not mains:
+            return
+        m = self.spec.compile()
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        inertia = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, inertia)
+        approx = {a.joint: a for a in self.result.approximations if a.joint}
+        for main, recs in mains.items():
+            dof = int(m.jnt_dofadr[m.joint(main).id])
+            armature = COUPLING_ARMATURE * float(inertia[dof, dof] - m.dof_armature[dof])
+            for name in recs:
+                self.spec.joint(name).armature = armature
+            planned = self._planned[main]
+            fit, i = planned.fit, planned.index
+            x = np.linspace(planned.lo, planned.hi, 2001)
+            dx = x - fit.x0
+            dinner = [np.polynomial.polynomial.polyval(dx, np.polynomial.polynomial.polyder(c)) for c in fit.inners]
+            inner = fit.inner_values(x)
+            slopes = [dinner[k] for k in range(fit.n_inner) if fit.hosts[k] == i]
+            slopes += [np.polynomial.polynomial.polyval(inner[k], np.polynomial.polynomial.polyder(c)) * dinner[k]
+                       for k, c in fit.axes[i].outers]
+            added = float(np.max(sum(armature * s ** 2 for s in slopes)))
+            a = approx.get(main)
+            if a is not None:
+                unit = "kg" if m.jnt_type[m.joint(main).id] == mujoco.mjtJoint.mjJNT_SLIDE else "kg m^2"
+                base = planned.axes[i].base
+                coord_unit = "kg m^2" if self.coord_joint[base][1].kind == "rotation" else "kg"
+                a.detail += (f"; armature {armature:.3g} {unit} each, adding at most {added:.3g} {coord_unit} "
+                             f"to '{base}'")
+
     def _set_inertial(self, body: mujoco.MjsBody, joint: Joint) -> None:
         b = self.skel.bodies[joint.child]
         mass, inertia = b.mass, b.inertia.copy()
@@ -588,15 +632,16 @@ class MjcfBuilder:
                           source: etree._Element) -> None:
         """Add ``extra`` right after joint ``rec`` on its body, with its type, axis and anchor (so
         that their values add to its value), and their equalities. Each extra joint is 0 at the
-        reference pose and is a real degree of freedom of the body, with
-        :data:`COUPLING_ARMATURE`."""
+        reference pose and is a real degree of freedom of the body; its armature is set by
+        :meth:`_set_extra_armature` once the skeleton is built."""
         body, jtype, axis, pos = self._joint_frames[rec.name]
         for name, driver, coef, role in extra:
             if name in self._joint_frames or any(r.name == name for r in self.result.joints):
                 raise self.doc.error(source, f"would make a second MuJoCo joint named '{name}'")
-            body.add_joint(name=name, type=jtype, axis=axis, pos=pos, ref=0.0, armature=COUPLING_ARMATURE[rec.kind])
+            body.add_joint(name=name, type=jtype, axis=axis, pos=pos, ref=0.0, armature=1.0)  # see _set_extra_armature
             self.exact[("joint", name)] = {"axis": axis, "pos": pos, "ref": 0.0}
             self._joint_frames[name] = (body, jtype, axis, pos)
+            self._extras_of.setdefault(rec.name, []).append(name)
             self._extra_records.setdefault(rec.name, []).append(JointRecord(
                 name, rec.kind, rec.opensim_joint, f"{rec.axis}/{role}", None, driver, f"{role} quartic"))
             self._equality(name, driver, np.asarray(coef, dtype=float), f"{name}_from_{driver}")
