@@ -1592,18 +1592,29 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     ts = (ts_x - mid) / half
     f_search = [(np.asarray(fn(ts_x), dtype=np.float64) - c) * w for fn, c, w in zip(fns, f0, weight, strict=True)]
 
-    def lp(shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], axis_uses):
-        """Per axis: (worst error relative to its target, LP coefficients, column scales, cond)."""
+    def lp(shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], axis_uses, polish=False):
+        """Per axis: (worst error, coefficients of the column-scaled basis, column scales, cond).
+        With ``polish``, the least-squares coefficients replace the linear program's when they
+        respect the amplitude bound and have the smaller worst error (they reach round-off for
+        a function the structure represents exactly, where the LP stops at its tolerance)."""
         hs = [_unit_shape(tt, t0, s)[0] for s in shapes]
         out = []
         for a, f in enumerate(ff):
             A = _axis_basis(tt, t0, [hs[k] for k in axis_uses[a]])
             scale = np.max(np.abs(A), axis=0)
+            As = A / scale
             fsa = max(float(np.max(np.abs(f))), 1e-300)
-            got = _lp_bounded_minimax(A / scale, f / fsa, len(axis_uses[a]), amplitude)
+            got = _lp_bounded_minimax(As, f / fsa, len(axis_uses[a]), amplitude)
             if got is None:
                 return None
-            out.append((got[1] * fsa, got[0] * fsa, scale, float(np.linalg.cond(A / scale))))
+            coef, err = got[0] * fsa, got[1] * fsa
+            if polish:
+                ls = np.linalg.lstsq(As, f, rcond=None)[0]
+                sums = np.abs(ls[4:]).reshape(-1, 3).sum(axis=1) if ls.size > 4 else np.zeros(0)
+                ls_err = float(np.max(np.abs(As @ ls - f)))
+                if np.all(sums <= amplitude * fsa) and ls_err < float(np.max(np.abs(As @ coef - f))):
+                    coef, err = ls, ls_err
+            out.append((err, coef, scale, float(np.linalg.cond(As))))
         return out
 
     def score(shapes, axis_uses) -> float:
@@ -1655,7 +1666,7 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
         shapes = unit_rows(best_flat)
 
     # final fit on the full grid
-    got = lp(shapes, t, fs, [list(u) for u in uses]) if L else None
+    got = lp(shapes, t, fs, [list(u) for u in uses], polish=True) if L else None
     if L and got is None:
         raise ValueError("fit_couplings: the linear program failed")
     units = [_unit_shape(t, t0, s) for s in shapes]
