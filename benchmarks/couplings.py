@@ -71,7 +71,7 @@ def _hanging(name: str, xml: Path) -> dict[str, tuple[float, float]]:
         d.qpos[m.jnt_qposadr[i]] = key[full.jnt_qposadr[full.joint(m.joint(i).name).id]]
     mujoco.mj_forward(m, d)
     fetched = models.fetch_model_with_geometry(name, progress=False)
-    axes, _ = mjcf.MjcfBuilder(read_skeleton(load_document(fetched.osim)))._coupled_axes()
+    axes, _ = mjcf.MjcfBuilder(read_skeleton(load_document(fetched.osim))).coupled_axes()
     names = [m.joint(i).name for i in range(m.njnt)]
     rows = {}
     for a in axes:

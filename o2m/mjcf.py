@@ -56,6 +56,13 @@ _LINEAR_SAMPLES = 401
 #: and outer joints (:func:`o2m.functions.fit_couplings`) until they are within it, until more
 #: joints stop helping, or until their bodies are full (:data:`MAX_BODY_DOFS`).
 COUPLING_TARGET = {"m": 1e-5, "rad": float(np.deg2rad(0.005))}
+#: Skeleton couplings with extra joints are also fitted this fraction of their coordinate's range
+#: beyond each end, with :data:`o2m.functions.COUPLING_MARGIN_SLACK` times the error allowed
+#: there: a joint pressing into a soft limit leaves its range a little (Leg6Dof9Musc's knee,
+#: swinging into its limit, went 0.026 rad past it), and a degree-16 fit of the range alone
+#: leaves the spline fast (0.8 mm 0.05 rad beyond a knee's range). Farther out the extra
+#: joints diverge much faster than a plain quartic: keep such coordinates within their range.
+COUPLING_MARGIN = 0.02
 #: Degrees of freedom MuJoCo allows one body ("more than 6 dofs in body" otherwise).
 MAX_BODY_DOFS = 6
 #: Armature of each extra joint of a coupled axis, as a multiple of its main joint's own inertia
@@ -354,7 +361,7 @@ class MjcfBuilder:
         is_coord = self.coord_joint.get(ax.coordinate, (None, None))[1] is ax
         return (ax.coordinate if is_coord else f"{joint.name}_{ax.name}"), is_coord
 
-    def _coupled_axes(self) -> tuple[list[_CoupledAxis], dict[str, int]]:
+    def coupled_axes(self) -> tuple[list[_CoupledAxis], dict[str, int]]:
         """Every moving skeleton axis that a non-linear function of an independent coordinate
         drives (transform axes and coupled coordinates), in build order; and each body's number
         of MuJoCo joints."""
@@ -394,7 +401,7 @@ class MjcfBuilder:
         on it with an outer joint (two joints), else an outer joint of an inner joint it has none
         of yet (one joint); kept only if that axis's error drops below COUPLING_GAIN times what it
         was and no axis of the coordinate gets worse than the worst was."""
-        axes, dofs = self._coupled_axes()
+        axes, dofs = self.coupled_axes()
         by_base: dict[str, list[_CoupledAxis]] = {}
         for a in axes:
             by_base.setdefault(a.base, []).append(a)
@@ -405,7 +412,8 @@ class MjcfBuilder:
             targets = [COUPLING_TARGET[a.units] for a in group]
 
             def fit(uses, hosts, start=(), fns=fns, targets=targets, lo=lo, hi=hi, x0=x0):
-                return fit_couplings(fns, lo, hi, x0, targets=targets, uses=uses, hosts=hosts, start_shapes=start)
+                return fit_couplings(fns, lo, hi, x0, targets=targets, uses=uses, hosts=hosts, start_shapes=start,
+                                     margin=COUPLING_MARGIN)
 
             best = fit([[] for _ in group], [])
             uses: list[list[int]] = [[] for _ in group]
@@ -608,8 +616,10 @@ class MjcfBuilder:
                 rec.relation = f"quartic fit + {len(extra)} extra joints"
                 what = (f"MuJoCo joint '{rec.name}' and its extra joints {', '.join(e[0] for e in extra)} follow "
                         f"'{base}' by a {cfit.structure(planned.index)}, fitted over [{lo:.4g}, {hi:.4g}]")
-                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}; the extra joints move through at "
-                           f"most {ax.amplitude:.3g} {units}")
+                margin = planned.fit.margin
+                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}; within {margin:.3g} beyond the range: "
+                           f"{ax.margin_error:.3g} {units}; the extra joints move through at most {ax.amplitude:.3g} "
+                           f"{units}")
             self.result.approximations.append(Approximation(
                 source.tag, source.get("name", rec.name), what, float(ax.max_error), units, detail, joint=rec.name))
         rec.driven_by = base
