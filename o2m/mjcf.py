@@ -33,7 +33,7 @@ import numpy as np
 from lxml import etree
 
 from . import geometry
-from .functions import COUPLING_GAIN, CouplingFit, fit_couplings, fit_polynomial
+from .functions import COUPLING_GAIN, AxisFit, CouplingFit, fit_couplings, fit_polynomial
 from .skeleton import Joint, Skeleton, Skipped, TransformAxis
 from .transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat, quat_to_matrix
 
@@ -385,6 +385,12 @@ class MjcfBuilder:
                 if _linear(rel, lo, hi) is None:
                     out.append(_CoupledAxis(name, joint.child, kind, base, rel))
         return out, dofs
+
+    def coupling_fit(self, joint: str) -> AxisFit | None:
+        """The fit of skeleton coupled joint ``joint`` (after :meth:`build`): its main joint, outer
+        joints and errors; None for a joint that is not a non-linear skeleton coupling."""
+        planned = self._planned.get(joint)
+        return None if planned is None else planned.fit.axes[planned.index]
 
     def _coupling_range(self, base: str) -> tuple[float, float]:
         """Where a coupling driven by coordinate ``base`` is fitted: its range, with its reference."""
