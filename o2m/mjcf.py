@@ -623,9 +623,10 @@ class MjcfBuilder:
                 what = (f"MuJoCo joint '{rec.name}' and its extra joints {', '.join(e[0] for e in extra)} follow "
                         f"'{base}' by a {cfit.structure(planned.index)}, fitted over [{lo:.4g}, {hi:.4g}]")
                 margin = planned.fit.margin
-                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}; within {margin:.3g} beyond the range: "
-                           f"{ax.margin_error:.3g} {units}; the extra joints move through at most {ax.amplitude:.3g} "
-                           f"{units}")
+                base_units = "rad" if base_kind == "rotation" else "m"
+                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}; up to {margin:.3g} {base_units} "
+                           f"beyond the range: {ax.margin_error:.3g} {units}; the extra joints move through at most "
+                           f"{ax.amplitude:.3g} {units}")
             self.result.approximations.append(Approximation(
                 source.tag, source.get("name", rec.name), what, float(ax.max_error), units, detail, joint=rec.name))
         rec.driven_by = base
