@@ -1459,7 +1459,7 @@ def _levenberg_marquardt(search: _ShapeSearch, x: FloatArray, iterations: int) -
         r_new = search.residual(x_new)
         cost_new = float(r_new @ r_new)
         if cost_new < cost:
-            done = cost - cost_new <= 1e-12 * cost
+            done = cost - cost_new <= 1e-9 * cost
             x, r, cost, lam = x_new, r_new, cost_new, max(lam / 3.0, 1e-12)
             J = search.jac(x)
             if done:
