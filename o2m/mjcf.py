@@ -14,7 +14,11 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the cano
   of a coordinate becomes *the* joint of that coordinate and carries its name, range and
   limits. Every other moving axis is driven by a MuJoCo joint equality (a quartic in the
   deviation of the driving coordinate from its reference value). When ``f`` is not linear,
-  the quartic is fitted over the coordinate's range and its worst error is recorded.
+  the quartic is fitted over the coordinate's range and its worst error is recorded; when that
+  quartic misses :data:`COUPLING_TARGET`, the axis also gets extra joints of the same body on
+  the same axis (inner joints, quartics of the coordinate, and outer joints, quartics of an
+  inner joint), whose values add to the axis's, fitted with the coordinate's other coupled
+  axes by :func:`o2m.functions.fit_couplings` within MuJoCo's 6 degrees of freedom per body.
 * CoordinateCouplerConstraints become joint equalities the same way.
 * A locked coordinate, and every axis or coupled coordinate that depends only on locked
   coordinates, is folded into the fixed body transforms at its default value: exact, and
@@ -487,7 +491,10 @@ class MjcfBuilder:
         mains = self._extras_of
         if not mains:
             return
-        m = self.spec.compile()
+        try:
+            m = self.spec.compile()
+        except ValueError:
+            return  # the conversion's own compile reports what is wrong
         d = mujoco.MjData(m)
         mujoco.mj_forward(m, d)
         inertia = np.zeros((m.nv, m.nv))
@@ -584,9 +591,10 @@ class MjcfBuilder:
         ``ref`` is the joint's reference value; ``source`` is the OpenSim element the coupling
         comes from (named in errors and in the approximation it records). A non-linear coupling
         is a minimax quartic; with ``high_order`` (skeleton axes and couplers, which this builder
-        adds itself), one whose quartic misses :data:`COUPLING_TARGET` also gets inner/outer
-        joint pairs on the same body, along the same axis (:meth:`_add_corrections`). Callers
-        outside this class (path-point carriers) get the plain quartic."""
+        adds itself and has planned in :meth:`_plan_couplings`), it is the planned main quartic,
+        and the joint's extra joints follow it on the same body and axis
+        (:meth:`_add_extra_joints`). Callers outside this class (path-point carriers) get the
+        plain quartic by default."""
         base = driver.base
         if base not in self.coord_joint:
             raise self.doc.error(source, f"depends on coordinate '{base}', which has no MuJoCo joint")
