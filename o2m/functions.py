@@ -28,6 +28,7 @@ coordinate's unit (rad or m); derivatives are value units per x unit.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -42,7 +43,7 @@ __all__ = [
     "Function", "Constant", "LinearFunction", "PolynomialFunction", "SimmSpline", "GCVSpline",
     "PiecewiseLinearFunction", "PiecewiseConstantFunction", "MultiplierFunction", "Sine",
     "StepFunction", "PolynomialFit", "parse_function", "function_child", "fit_polynomial",
-    "FUNCTION_TAGS",
+    "CouplingFit", "fit_coupling", "FUNCTION_TAGS",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -1218,3 +1219,549 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
         except ValueError:
             pass
     return PolynomialFit(coef=best, max_error=best_err[0], rms_error=best_err[1], lo=lo, hi=hi, x0=x0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Coupling fits beyond a quartic: sums of joints along one axis
+# ---------------------------------------------------------------------------------------------
+#: Starting shapes (c, p) of a new inner polynomial, (t - c)^p, before it is optimised.
+COUPLING_STARTS: tuple[tuple[float, int], ...] = tuple((c, p) for p in (3, 4) for c in (-1.0, -0.5, 0.0, 0.5, 1.0))
+#: Random starting shapes added to those (seeded, so a conversion is reproducible).
+COUPLING_RANDOM_STARTS = 10
+#: The terms of each outer joint's correction have amplitudes adding up to at most this times
+#: its axis's max |y - y(x0)|: the extra joints then move about as much as the axis itself,
+#: never by large amounts that cancel (which a free fit of the same error needs; see
+#: fit_couplings).
+COUPLING_AMPLITUDE = 2.0
+#: An added inner joint is kept only if it brings the error below this fraction of the last.
+COUPLING_GAIN = 0.9
+#: In the margins beyond [lo, hi] that fit_couplings covers, the error may be this many times
+#: the error inside: a degree-16 polynomial fitted on [lo, hi] alone leaves it fast (0.7 mm
+#: 0.045 rad beyond a knee's range), which a joint pressing into a soft limit reaches.
+COUPLING_MARGIN_SLACK = 5.0
+_SEARCH_POINTS = 401
+_LAWSON_ROUNDS = 4
+_LM_ITERATIONS = 200
+_POLISHED = 3
+_LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+_CHEB = np.polynomial.chebyshev
+_POLY = np.polynomial.polynomial
+
+
+@dataclass(frozen=True)
+class AxisFit:
+    """One axis of a :class:`CouplingFit`: y(x) - y(x0) ≈ main(x) + Σ_{inners l it carries}
+    inner_l(x) + Σ_{(l, c) in outers} c(inner_l(x)).
+
+    ``main`` (5,): the axis's main joint, a quartic in (x - x0), lowest power first, ``main[0]``
+    being fn(x0); ``outers``: (inner index l, (5,) quartic coefficients in inner l's value,
+    constant and linear terms 0), each an outer joint on this axis. ``max_error`` /
+    ``rms_error``: realised errors (the function's unit) on a grid 8x denser than the fitting
+    grid, over [lo, hi]; ``quartic_error``: the plain quartic's worst error; ``amplitude``: the
+    largest range an extra joint on this axis moves through (0 without extra joints);
+    ``margin_error``: the worst error in the margins beyond [lo, hi] that the fit also covers.
+    """
+
+    main: FloatArray
+    outers: tuple[tuple[int, FloatArray], ...]
+    max_error: float
+    rms_error: float
+    quartic_error: float
+    target: float
+    amplitude: float
+    margin_error: float = 0.0
+
+
+@dataclass(frozen=True)
+class CouplingFit:
+    """Several functions of one variable x (the axes of a coordinate's couplings), each a sum of
+    MuJoCo joints following quartic joint equalities; see :func:`fit_couplings`.
+
+    ``inners`` (L, 5): inner joint l, a quartic in (x - x0) with no constant term (driven by x),
+    carried by axis ``hosts[l]``; ``shapes`` (L, 4): the inner polynomials' Chebyshev
+    coefficients (T_1..T_4) in t = (x - mid) / half, mid and half the centre and half-width of
+    [lo - margin, hi + margin]; ``axes``: one :class:`AxisFit` per function; ``condition``: the
+    largest 2-norm condition number of an axis's column-scaled linear-program basis;
+    ``margin``: how far beyond [lo, hi] the fit reaches on each side (x's unit).
+    """
+
+    inners: FloatArray
+    hosts: tuple[int, ...]
+    shapes: FloatArray
+    axes: tuple[AxisFit, ...]
+    condition: float
+    lo: float
+    hi: float
+    x0: float
+    margin: float = 0.0
+
+    @property
+    def n_inner(self) -> int:
+        """L, the number of inner joints."""
+        return int(self.inners.shape[0])
+
+    def inner_values(self, x: ArrayLike) -> FloatArray:
+        """Every inner joint's value at x: (L, *x.shape)."""
+        dx = _as_array(x) - self.x0
+        return np.array([_POLY.polyval(dx, c) for c in self.inners]).reshape(self.n_inner, *dx.shape)
+
+    def joint_values(self, axis: int, x: ArrayLike) -> tuple[FloatArray, list[FloatArray], list[FloatArray]]:
+        """Axis ``axis``'s joints at x, each evaluated as MuJoCo evaluates its equality: (main,
+        [inner joints it carries], [its outer joints])."""
+        dx = _as_array(x) - self.x0
+        inner = self.inner_values(x)
+        ax = self.axes[axis]
+        hosted = [inner[k] for k in range(self.n_inner) if self.hosts[k] == axis]
+        outers = [_out(_POLY.polyval(inner[k], c)) for k, c in ax.outers]
+        return _out(_POLY.polyval(dx, ax.main)), hosted, outers
+
+    def axis_value(self, axis: int, x: ArrayLike) -> FloatArray:
+        """The sum of axis ``axis``'s joints at x (any shape)."""
+        main, hosted, outers = self.joint_values(axis, x)
+        return _out(main + sum(hosted, np.zeros_like(main)) + sum(outers, np.zeros_like(main)))
+
+    def __call__(self, x: ArrayLike) -> FloatArray:
+        """Every axis's value at x: (n_axes, *x.shape)."""
+        return np.array([self.axis_value(a, x) for a in range(len(self.axes))])
+
+    def extra_joints(self, axis: int) -> int:
+        """How many joints axis ``axis`` has besides its main joint."""
+        return sum(h == axis for h in self.hosts) + len(self.axes[axis].outers)
+
+    def structure(self, axis: int) -> str:
+        """A short description of axis ``axis``'s joints, e.g. ``quartic + 1 inner + 1 outer quartic``."""
+        ax = self.axes[axis]
+        hosted = sum(h == axis for h in self.hosts)
+        if not hosted and not ax.outers:
+            return "quartic"
+        parts = ["quartic"]
+        if hosted:
+            parts.append(f"{hosted} inner quartic{'s' if hosted > 1 else ''} (a quartic of the coordinate)")
+        if ax.outers:
+            n = len(ax.outers)
+            parts.append(f"{n} outer quartic{'s' if n > 1 else ''} of inner joint{'s' if n > 1 else ''} "
+                         + ", ".join(str(k + 1) for k, _ in ax.outers))
+        return " + ".join(parts)
+
+
+def _shape_values(t: FloatArray, t0: float, shape: FloatArray) -> FloatArray:
+    """The inner polynomial Σ_i shape[i] T_{i+1}(t), minus its value at t0."""
+    c = np.concatenate([[0.0], shape])
+    return _CHEB.chebval(t, c) - _CHEB.chebval(t0, c)
+
+
+def _unit_shape(t: FloatArray, t0: float, shape: FloatArray) -> tuple[FloatArray, float]:
+    """The inner polynomial on t scaled to at most 1 in magnitude, and the scale N."""
+    h = _shape_values(t, t0, shape)
+    nk = max(float(np.max(np.abs(h))), 1e-300)
+    return h / nk, nk
+
+
+def _axis_basis(t: FloatArray, t0: float, hs: Sequence[FloatArray]) -> FloatArray:
+    """Columns (m, 4 + 3K) of one axis's fit at t: (t - t0)^j, j = 1..4 (the main quartic), then
+    h_k^j, j = 2..4, for each inner shape h_k it has an outer joint of (h_k^1 is a quartic
+    vanishing at t0, already in the main quartic's span)."""
+    v = t - t0
+    cols = [v ** j for j in range(1, 5)] + [h ** j for h in hs for j in (2, 3, 4)]
+    return np.stack(cols, axis=1)
+
+
+class _ShapeSearch:
+    """Variable projection for the inner shapes: for shapes θ (L, 4) (Chebyshev coefficients of
+    T_1..T_4 in t, each scaled by |θ_l|, which the fit does not depend on), the weighted
+    least-squares residuals of every axis's best linear coefficients, stacked, and their
+    Jacobian in Kaufman's approximation, for a Levenberg-Marquardt search. ``sw`` (per axis,
+    (m,)) turns least squares towards minimax (Lawson's iteration)."""
+
+    def __init__(self, t: FloatArray, t0: float, fs: Sequence[FloatArray], uses: Sequence[Sequence[int]],
+                 rows: FloatArray | None = None):
+        #: fixed weight of each sample (the range's margin counts less), times ``sw``
+        self.rows = np.ones_like(t) if rows is None else np.asarray(rows, dtype=float)
+        self.V = np.stack([(t - t0) ** j for j in range(1, 5)], axis=1)
+        self.phi = np.stack([_CHEB.chebval(t, np.eye(5)[i]) - _CHEB.chebval(t0, np.eye(5)[i])
+                             for i in range(1, 5)], axis=1)
+        self.fs = [np.asarray(f, dtype=float) for f in fs]
+        self.uses = [list(u) for u in uses]
+        self.sw = [np.ones_like(f) for f in self.fs]
+        self._key: bytes | None = None
+
+    def _solve(self, flat: FloatArray) -> None:
+        key = flat.tobytes() + b"".join(w.tobytes() for w in self.sw)
+        if key == self._key:
+            return
+        th = flat.reshape(-1, 4)
+        norms = np.maximum(np.linalg.norm(th, axis=1), 1e-300)
+        H = (self.phi @ th.T) / norms  # (m, L)
+        self.H, self.th, self.norms = H, th, norms
+        self.parts = []
+        for f, u, sw in zip(self.fs, self.uses, self.sw, strict=True):
+            sw = sw * self.rows
+            A = np.hstack([self.V] + [np.stack([H[:, k] ** j for j in (2, 3, 4)], axis=1) for k in u])
+            scale = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
+            U, S, Vt = np.linalg.svd(A * sw[:, None] / scale, full_matrices=False)
+            r = int(np.sum(S > S[0] * 1e-12))
+            U, S, Vt = U[:, :r], S[:r], Vt[:r]
+            c = (Vt.T @ ((U.T @ (sw * f)) / S)) / scale  # coefficients of the unscaled columns
+            self.parts.append((A, U, S, Vt, scale, c, sw * (A @ c - f)))
+        self._key = key
+
+    def residual(self, flat: FloatArray) -> FloatArray:
+        self._solve(flat)
+        return np.concatenate([p[-1] for p in self.parts])  # a new array: the caller may change it
+
+    def errors(self, flat: FloatArray) -> list[FloatArray]:
+        """Each axis's residual A c - f, weighted by the samples' fixed weights only."""
+        self._solve(flat)
+        return [self.rows * (p[0] @ p[5] - f) for p, f in zip(self.parts, self.fs, strict=True)]
+
+    def jac(self, flat: FloatArray) -> FloatArray:
+        """d residual / d θ, (Σ m, 4L): Golub and Pereyra's variable-projection derivative,
+        P⊥ dA c - A⁺ᵀ dAᵀ r (r = A c - f), for the weighted, column-scaled basis."""
+        self._solve(flat)
+        L = self.H.shape[1]
+        blocks = []
+        for (_, U, S, Vt, scale, c, res), u, sw in zip(self.parts, self.uses, self.sw, strict=True):
+            sw = sw * self.rows
+            J = np.zeros((sw.size, 4 * L))
+            for i, k in enumerate(u):
+                cols = slice(4 + 3 * i, 7 + 3 * i)
+                b = c[cols]
+                h = self.H[:, k]
+                unit = self.th[k] / self.norms[k]
+                dh_dth = (self.phi - h[:, None] * unit[None, :]) / self.norms[k]  # h = φ θ / |θ|, (m, 4)
+                dcol = np.stack([sw * j * h ** (j - 1) for j in (2, 3, 4)], axis=1)  # d(weighted column)/dh
+                g = (dcol @ b)[:, None] * dh_dth  # dA c, (m, 4)
+                first = g - U @ (U.T @ g)
+                # A⁺ᵀ dAᵀ r: dA has nonzero columns only at this outer's 3 columns
+                dAt_r = (dcol * res[:, None]).T @ dh_dth / scale[cols][:, None]  # (3, 4)
+                second = U @ ((Vt[:, cols] @ dAt_r) / S[:, None])
+                J[:, 4 * k: 4 * k + 4] += first - second
+            blocks.append(J)
+        return np.vstack(blocks)
+
+
+def _levenberg_marquardt(search: _ShapeSearch, x: FloatArray, iterations: int) -> FloatArray:
+    """Minimise |search.residual(x)|^2 from x by Levenberg-Marquardt (Marquardt's diagonal
+    scaling). Written out rather than scipy's MINPACK, whose steps differ in the last bit from
+    run to run, which a search over many local minima turns into different fits of one model."""
+    r, J = search.residual(x), search.jac(x)
+    cost, lam = float(r @ r), 1e-3
+    for _ in range(iterations):
+        g, H = J.T @ r, J.T @ J
+        d = np.diag(H).copy()
+        d = np.maximum(d, 1e-12 * max(float(d.max()), 1e-300))
+        try:
+            step = np.linalg.solve(H + lam * np.diag(d), -g)
+        except np.linalg.LinAlgError:
+            lam *= 10.0
+            continue
+        x_new = x + step
+        r_new = search.residual(x_new)
+        cost_new = float(r_new @ r_new)
+        if cost_new < cost:
+            done = cost - cost_new <= 1e-9 * cost
+            x, r, cost, lam = x_new, r_new, cost_new, max(lam / 3.0, 1e-12)
+            J = search.jac(x)
+            if done:
+                break
+        else:
+            lam *= 4.0
+            if lam > 1e12:
+                break
+    return x
+
+
+def _lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float) -> tuple[FloatArray, float] | None:
+    """min_a max |A a - f| with Σ_j |a_kj| <= bound for each outer k (the 3 columns of outer k
+    after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None."""
+    from scipy.optimize import linprog
+
+    m, n = A.shape
+    nb = 3 * n_outer
+    ones = np.ones((m, 1))
+    rows = [np.hstack([A, np.zeros((m, nb)), -ones]), np.hstack([-A, np.zeros((m, nb)), -ones])]
+    rhs = [f, -f]
+    if nb:
+        sel = np.zeros((nb, n))
+        sel[:, 4:] = np.eye(nb)
+        zero = np.zeros((nb, 1))
+        rows += [np.hstack([sel, -np.eye(nb), zero]), np.hstack([-sel, -np.eye(nb), zero]),
+                 np.hstack([np.zeros((n_outer, n)), np.kron(np.eye(n_outer), np.ones((1, 3))), np.zeros((n_outer, 1))])]
+        rhs += [np.zeros(2 * nb), np.full(n_outer, bound)]
+    cost = np.zeros(n + nb + 1)
+    cost[-1] = 1.0
+    res = linprog(cost, A_ub=np.vstack(rows), b_ub=np.concatenate(rhs),
+                  bounds=[(None, None)] * n + [(0, None)] * (nb + 1), method="highs", options=_LP_OPTIONS)
+    if res.status != 0:
+        return None
+    return res.x[:n], float(res.x[-1])
+
+
+def _power_shape(c: float, p: int) -> FloatArray:
+    """Chebyshev coefficients T_1..T_4 of (t - c)^p (its constant term dropped)."""
+    cheb = _CHEB.poly2cheb(_POLY.polypow([-c, 1.0], p))
+    return np.concatenate([cheb, np.zeros(5 - cheb.size)])[1:5]
+
+
+def _shifted_power_series(cheb_shape: FloatArray, t0: float, half: float) -> FloatArray:
+    """Power coefficients (5,) in (x - x0) of Σ_i shape[i] T_{i+1}(t) - (its value at t0), with
+    t - t0 = (x - x0) / half."""
+    p = _CHEB.cheb2poly(np.concatenate([[0.0], cheb_shape]))  # in t, lowest power first
+    p = np.concatenate([p, np.zeros(5 - p.size)])
+    shifted = np.zeros(5)  # p(t0 + v) = Σ_j shifted[j] v^j
+    for i, pi in enumerate(p):
+        for j in range(i + 1):
+            shifted[j] += pi * math.comb(i, j) * t0 ** (i - j)
+    shifted[0] = 0.0
+    return shifted / half ** np.arange(5)
+
+
+#: Fits already made in this process, by a digest of the functions' values and the arguments.
+_COUPLING_CACHE: dict[bytes, CouplingFit] = {}
+
+
+def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, hi: float, x0: float, *,
+                  targets: Sequence[float], uses: Sequence[Sequence[int]], hosts: Sequence[int],
+                  start_shapes: ArrayLike = (), n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
+                  margin: float = 0.0, seed: int = 0) -> CouplingFit:
+    """Approximate functions y_a of one variable x on [lo, hi] (the coupled axes of one
+    coordinate) by sums of MuJoCo joints, each joint following a quartic joint equality.
+
+    What: L inner joints D_l(x) = α_l h_l(x), each a quartic in (x - x0) (driven by x) and
+    carried by axis ``hosts[l]``; axis a has a main joint C_a, a quartic in (x - x0), and for
+    each l in ``uses[a]`` an outer joint E_al, a quartic in D_l (driven by it: a chain). So
+
+        y_a(x) - y_a(x0) ≈ C_a(x) + Σ_{l: hosts[l] = a} D_l(x) + Σ_{l in uses[a]} E_al(D_l(x)).
+
+    Every joint but C_a is 0 at x0 and C_a(x0) = 0 after y_a(x0), so the sums are exact at x0
+    and the reference pose satisfies every equality.
+
+    Why: a MuJoCo joint equality (``mjEQ_JOINT``) is a quartic, so one joint cannot follow a
+    spline closely (about 0.25 mm on a knee translation). Joints of one body along the same
+    axis add up (slides sum their translations, hinges about one axis through one point their
+    angles), and a quartic of a quartic reaches degree 16. MuJoCo allows at most 6 degrees of
+    freedom per body, so inner joints are shared: one inner joint can drive outer joints on
+    several axes, also on other bodies (a knee's inner joint drives the patella's outers).
+
+    How: for fixed inner shapes h_l (scaled to at most 1 in magnitude), each y_a is linear in
+    its remaining coefficients (the main quartic's and b_alj of h_l^j, j = 2..4), so its minimax
+    fit is one linear program, on column-scaled variables, with each outer's Σ_j |b_alj| held
+    to ``amplitude`` times max |y_a - y_a(x0)|. The bound matters: with fixed shapes (x - c)^p a
+    free fit reaches its error only with joints moving metres (or turns) in opposite
+    directions to sum to millimetres (a degree-16 polynomial written in a poorly conditioned
+    basis), which a simulation cannot follow. The shapes are found by a least-squares search
+    (variable projection, Levenberg-Marquardt), from ``start_shapes`` (the first inners' shapes,
+    e.g. a smaller structure's), for each further inner from (t - c)^p for the shifts and
+    degrees of :data:`COUPLING_STARTS` and seeded random shapes, adding one inner at a time;
+    the best few are reweighted towards minimax (Lawson's iteration) and scored by their linear
+    programs (worst error relative to ``targets``). Then C_a is the main quartic minus the inner
+    joints axis a carries, α_l the largest correction term of its host axis (or of its other
+    axes), and E_al = Σ_j b_alj (D_l / α_l)^j.
+
+    ``margin`` (a fraction of hi - lo) widens the fit by that much on each side, where the error
+    may be :data:`COUPLING_MARGIN_SLACK` times larger than inside; the errors reported are the
+    ones inside [lo, hi] (the margins' in ``margin_error``).
+
+    Units: x in the driving coordinate's unit (rad or m); y_a and ``targets[a]`` in axis a's.
+    """
+    lo, hi, x0 = float(lo), float(hi), float(x0)
+    n_axes, L = len(fns), len(hosts)
+    if not hi > lo:
+        raise ValueError(f"fit_couplings needs hi > lo, got [{lo}, {hi}]")
+    if not lo <= x0 <= hi:
+        raise ValueError(f"fit_couplings needs lo <= x0 <= hi, got x0 = {x0} outside [{lo}, {hi}]")
+    if len(targets) != n_axes or len(uses) != n_axes:
+        raise ValueError("fit_couplings needs one target and one list of used inners per function")
+    if any(not 0 <= h < n_axes for h in hosts) or any(not 0 <= k < L for u in uses for k in u):
+        raise ValueError("fit_couplings: hosts must name axes and uses must name inner joints")
+    start = np.asarray(start_shapes, dtype=float).reshape(-1, 4)
+    if start.shape[0] > L:
+        raise ValueError("fit_couplings: more start shapes than inner joints")
+
+    knots = [np.asarray(getattr(fn, "knots", np.empty(0)), dtype=float) for fn in fns]
+    width = float(margin) * (hi - lo)
+    lo_m, hi_m = lo - width, hi + width  # the range with its margins
+
+    def grid(m: int) -> FloatArray:
+        xs = np.linspace(lo_m, hi_m, m)
+        k = np.concatenate([xs, *knots, [lo, hi]] if width else [xs, *knots])
+        return np.unique(k[(k >= lo_m) & (k <= hi_m)])
+
+    def rows(x: FloatArray) -> FloatArray:
+        return np.where((x >= lo) & (x <= hi), 1.0, 1.0 / COUPLING_MARGIN_SLACK)
+
+    check = grid(8 * (n - 1) + 1)
+    fc = [np.asarray(fn(check), dtype=np.float64) for fn in fns]
+    # everything below sees the functions only through their values on this grid (which holds the others)
+    key = hashlib.sha256(b"".join([check.tobytes(), *(f.tobytes() for f in fc), start.tobytes(),
+                                   np.array([lo, hi, x0, n, amplitude, margin, seed, *targets, *hosts]).tobytes(),
+                                   repr([list(u) for u in uses]).encode()])).digest()
+    if key in _COUPLING_CACHE:
+        return _COUPLING_CACHE[key]
+    if len(_COUPLING_CACHE) > 256:
+        _COUPLING_CACHE.clear()
+
+    quartics = [fit_polynomial(fn, lo, hi, x0, degree=4, n=n, exact_at_x0=True) for fn in fns]  # type: ignore[arg-type]
+    f0 = [float(np.asarray(fn(np.array([x0])), dtype=np.float64)[0]) for fn in fns]
+    mid, half = (lo_m + hi_m) / 2, (hi_m - lo_m) / 2
+    t0 = (x0 - mid) / half
+    xs = grid(n)
+    t, w_fit = (xs - mid) / half, rows(xs)
+    fs = [np.asarray(fn(xs), dtype=np.float64) - c for fn, c in zip(fns, f0, strict=True)]
+    fscale = [max(float(np.max(np.abs(f))), 1e-300) for f in fs]
+    weight = [1.0 / max(float(tg), 1e-9 * q.max_error, 1e-300) for tg, q in zip(targets, quartics, strict=True)]
+    ts_x = grid(_SEARCH_POINTS)
+    ts, w_search = (ts_x - mid) / half, rows(ts_x)
+    f_search = [(np.asarray(fn(ts_x), dtype=np.float64) - c) * w for fn, c, w in zip(fns, f0, weight, strict=True)]
+
+    def lp(shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], ww: FloatArray, axis_uses,
+           polish=False):
+        """Per axis: (worst error weighted by ``ww``, coefficients of the column-scaled basis,
+        column scales, cond). With ``polish``, the least-squares coefficients replace the linear
+        program's when they respect the amplitude bound and have the smaller worst error (they
+        reach round-off for a function the structure represents exactly, where the LP stops at
+        its tolerance)."""
+        hs = [_unit_shape(tt, t0, s)[0] for s in shapes]
+        out = []
+        for a, f in enumerate(ff):
+            A = _axis_basis(tt, t0, [hs[k] for k in axis_uses[a]])
+            scale = np.max(np.abs(A), axis=0)
+            As = A / scale
+            fsa = max(float(np.max(np.abs(f))), 1e-300)
+            got = _lp_bounded_minimax(As * ww[:, None], f * ww / fsa, len(axis_uses[a]), amplitude)
+            if got is None:
+                return None
+            coef, err = got[0] * fsa, got[1] * fsa
+            if polish:
+                ls = np.linalg.lstsq(As * ww[:, None], f * ww, rcond=None)[0]
+                sums = np.abs(ls[4:]).reshape(-1, 3).sum(axis=1) if ls.size > 4 else np.zeros(0)
+                ls_err = float(np.max(np.abs(ww * (As @ ls - f))))
+                if np.all(sums <= amplitude * fsa) and ls_err < float(np.max(np.abs(ww * (As @ coef - f)))):
+                    coef, err = ls, ls_err
+            out.append((err, coef, scale, float(np.linalg.cond(As))))
+        return out
+
+    def score(shapes, axis_uses) -> float:
+        got = lp(shapes, ts, f_search, w_search, axis_uses)  # f_search is in units of each target already
+        return math.inf if got is None else max(g[0] for g in got)
+
+    rng = np.random.default_rng(seed)
+    shapes = [s / np.linalg.norm(s) for s in start]
+    stages = list(range(len(shapes), L)) or ([L - 1] if L else [])
+    for stage in stages:
+        k_all = stage + 1
+        axis_uses = [[k for k in u if k < k_all] for u in uses]
+        search = _ShapeSearch(ts, t0, f_search, axis_uses, w_search)
+        if len(shapes) >= k_all:
+            starts = [np.zeros(0)]  # polish the given shapes
+        else:
+            starts = [_power_shape(c, p) for c, p in COUPLING_STARTS]
+            starts += list(rng.normal(size=(COUPLING_RANDOM_STARTS, 4)))
+        runs = []
+        for s0 in starts:
+            flat0 = np.concatenate([*shapes[:k_all], s0 / max(float(np.linalg.norm(s0)), 1e-300)] if s0.size
+                                   else shapes[:k_all])
+            search.sw = [np.ones_like(f) for f in f_search]
+            flat = _levenberg_marquardt(search, flat0, _LM_ITERATIONS)
+            r = search.residual(flat)
+            runs.append((float(r @ r), flat, flat0))
+        # every result scored by its linear programs; the best few then reweighted towards
+        # minimax (Lawson); the earlier shapes kept as they were with the best new one are a
+        # candidate too (its error is no larger than the smaller structure's)
+        runs.sort(key=lambda r: r[0])
+
+        def unit_rows(flat: FloatArray) -> list[FloatArray]:
+            c = flat.reshape(-1, 4)
+            return list(c / np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None])
+
+        scored = [(score(unit_rows(f), axis_uses), i, f) for i, f in
+                  enumerate([runs[0][2]] + [r[1] for r in runs])]
+        scored.sort(key=lambda z: (z[0], z[1]))
+        for _, _, flat in list(scored[:_POLISHED]):
+            ws = [np.ones_like(f) for f in f_search]
+            for j in range(_LAWSON_ROUNDS):
+                ws = [w * np.abs(e) for w, e in zip(ws, search.errors(flat), strict=True)]
+                top = max(max(float(np.max(w)) for w in ws), 1e-300)
+                ws = [w / top for w in ws]
+                search.sw = [np.sqrt(w) for w in ws]
+                flat = _levenberg_marquardt(search, flat, _LM_ITERATIONS // 4)
+                scored.append((score(unit_rows(flat), axis_uses), len(scored) + j, flat))
+        best_flat = min(scored, key=lambda z: (z[0], z[1]))[2]
+        shapes = unit_rows(best_flat)
+
+    # final fit on the full grid
+    got = lp(shapes, t, fs, w_fit, [list(u) for u in uses], polish=True) if L else None
+    if L and got is None:
+        raise ValueError("fit_couplings: the linear program failed")
+    units = [_unit_shape(t, t0, s) for s in shapes]
+    inner_poly = [_shifted_power_series(s, t0, half) / nk for s, (_, nk) in zip(shapes, units, strict=True)]
+    corrections: dict[tuple[int, int], tuple[FloatArray, float]] = {}  # (axis, inner): (b (3,), max |g|)
+    mains = []
+    conds = [1.0]
+    for a in range(n_axes):
+        main = np.zeros(5)
+        main[0] = f0[a]
+        if L:
+            _, coef, scale, cond = got[a]  # type: ignore[index]
+            coef = coef / scale
+            conds.append(cond)
+            main[1:] = coef[:4] / half ** np.arange(1, 5)
+            for i, k in enumerate(uses[a]):
+                b = coef[4 + 3 * i: 7 + 3 * i]
+                g = sum(b[j - 2] * units[k][0] ** j for j in (2, 3, 4))
+                corrections[(a, k)] = (b, float(np.max(np.abs(g))))
+        else:
+            main = np.asarray(quartics[a].coef, dtype=float).copy()
+        mains.append(main)
+    alphas = []
+    for k in range(L):
+        host = hosts[k]
+        own = corrections.get((host, k), (None, 0.0))[1]
+        other = max([corrections[(a, k)][1] * fscale[host] / fscale[a] for a in range(n_axes) if (a, k) in corrections],
+                    default=0.0)
+        alphas.append(own if own > 1e-12 * fscale[host] else max(other, 1e-3 * fscale[host]))
+    inners = np.array([p * al for p, al in zip(inner_poly, alphas, strict=True)]).reshape(-1, 5)
+    for k in range(L):
+        mains[hosts[k]] = mains[hosts[k]] - inners[k]  # the host's main joint makes up for the inner joint
+    outers_by_axis: list[list[tuple[int, FloatArray]]] = [[] for _ in range(n_axes)]
+    for (a, k), (b, _) in sorted(corrections.items()):
+        al = alphas[k]
+        outers_by_axis[a].append((k, np.array([0.0, 0.0, b[0] / al ** 2, b[1] / al ** 3, b[2] / al ** 4])))
+    draft = CouplingFit(inners=inners, hosts=tuple(int(h) for h in hosts), shapes=np.array(shapes).reshape(-1, 4),
+                        axes=tuple(AxisFit(mains[a], tuple(outers_by_axis[a]), 0.0, 0.0, quartics[a].max_error,
+                                           float(targets[a]), 0.0) for a in range(n_axes)),
+                        condition=float(max(conds)), lo=lo, hi=hi, x0=x0, margin=width)
+    inside = (check >= lo) & (check <= hi)
+    axes = []
+    for a in range(n_axes):
+        err = draft.axis_value(a, check) - fc[a]
+        _, hosted, outers = draft.joint_values(a, check)
+        amp = max([float(np.ptp(v)) for v in hosted + outers], default=0.0)
+        axes.append(AxisFit(mains[a], tuple(outers_by_axis[a]), float(np.max(np.abs(err[inside]))),
+                            float(np.sqrt(np.mean(err[inside] ** 2))), quartics[a].max_error, float(targets[a]), amp,
+                            float(np.max(np.abs(err[~inside]), initial=0.0))))
+    fit = CouplingFit(**{**draft.__dict__, "axes": tuple(axes)})
+    _COUPLING_CACHE[key] = fit
+    return fit
+
+
+def fit_coupling(fn: Callable[[FloatArray], FloatArray], lo: float, hi: float, x0: float, *,
+                 target: float, max_inner: int = 3, n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
+                 margin: float = 0.0, seed: int = 0) -> CouplingFit:
+    """One function as a sum of joints (:func:`fit_couplings` with one axis carrying all its inner
+    joints): the plain quartic when its error is at most ``target``; otherwise K = 1, 2, ...
+    ``max_inner`` inner/outer pairs, each K starting from K - 1's shapes, stopping at the first
+    K that meets ``target`` (fewest extra joints), and only as long as each pair brings the
+    error below :data:`COUPLING_GAIN` times the last; so the error never grows with
+    ``max_inner``. Units as :func:`fit_couplings`."""
+    kw = {"n": n, "amplitude": amplitude, "margin": margin, "seed": seed}
+    best = fit_couplings([fn], lo, hi, x0, targets=[target], uses=[[]], hosts=[], **kw)
+    for k in range(1, max_inner + 1):
+        if best.axes[0].max_error <= target:
+            break
+        fit = fit_couplings([fn], lo, hi, x0, targets=[target], uses=[list(range(k))], hosts=[0] * k,
+                            start_shapes=best.shapes, **kw)
+        if fit.axes[0].max_error > COUPLING_GAIN * best.axes[0].max_error:
+            break
+        best = fit
+    return best

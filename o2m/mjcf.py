@@ -14,7 +14,11 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the cano
   of a coordinate becomes *the* joint of that coordinate and carries its name, range and
   limits. Every other moving axis is driven by a MuJoCo joint equality (a quartic in the
   deviation of the driving coordinate from its reference value). When ``f`` is not linear,
-  the quartic is fitted over the coordinate's range and its worst error is recorded.
+  the quartic is fitted over the coordinate's range and its worst error is recorded; when that
+  quartic misses :data:`COUPLING_TARGET`, the axis also gets extra joints of the same body on
+  the same axis (inner joints, quartics of the coordinate, and outer joints, quartics of an
+  inner joint), whose values add to the axis's, fitted with the coordinate's other coupled
+  axes by :func:`o2m.functions.fit_couplings` within MuJoCo's 6 degrees of freedom per body.
 * CoordinateCouplerConstraints become joint equalities the same way.
 * A locked coordinate, and every axis or coupled coordinate that depends only on locked
   coordinates, is folded into the fixed body transforms at its default value: exact, and
@@ -33,7 +37,7 @@ import numpy as np
 from lxml import etree
 
 from . import geometry
-from .functions import fit_polynomial
+from .functions import COUPLING_GAIN, AxisFit, CouplingFit, fit_couplings, fit_polynomial
 from .skeleton import Joint, Skeleton, Skipped, TransformAxis
 from .transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat, quat_to_matrix
 
@@ -50,6 +54,30 @@ EQUALITY_SOLIMP = (0.999, 0.999, 0.001, 0.5, 2.0)
 UNBOUNDED_FIT_RANGE = {"rotation": (-np.pi, np.pi), "translation": (-1.0, 1.0)}
 #: Samples used to decide whether a function is linear over a range.
 _LINEAR_SAMPLES = 401
+#: Worst error a skeleton coupling (a coupled transform axis or a coupler) is fitted to, per
+#: unit: 0.01 mm and 0.005 deg, a tenth of the skeleton's 0.1 mm / 0.05 deg budget. A plain
+#: quartic within it stays a plain quartic; otherwise the coordinate's coupled axes get inner
+#: and outer joints (:func:`o2m.functions.fit_couplings`) until they are within it, until more
+#: joints stop helping, or until their bodies are full (:data:`MAX_BODY_DOFS`).
+COUPLING_TARGET = {"m": 1e-5, "rad": float(np.deg2rad(0.005))}
+#: Skeleton couplings with extra joints are also fitted this fraction of their coordinate's range
+#: beyond each end, with :data:`o2m.functions.COUPLING_MARGIN_SLACK` times the error allowed
+#: there: a joint pressing into a soft limit leaves its range a little (Leg6Dof9Musc's knee,
+#: swinging into its limit, went 0.026 rad past it), and a degree-16 fit of the range alone
+#: leaves the spline fast (0.8 mm 0.05 rad beyond a knee's range). Farther out the extra
+#: joints diverge much faster than a plain quartic: keep such coordinates within their range.
+COUPLING_MARGIN = 0.02
+#: Degrees of freedom MuJoCo allows one body ("more than 6 dofs in body" otherwise).
+MAX_BODY_DOFS = 6
+#: Armature of each extra joint of a coupled axis, as a multiple of its main joint's own inertia
+#: at the reference pose (the mass, or moment of inertia about the axis, of everything the joint
+#: moves). Several joints along one axis of one body make the mass matrix singular without
+#: armature, and an armature much lighter than the body makes their equalities soft: in
+#: Gait2354 hanging under gravity, 0.01 kg let the knee translations sag 0.2 mm off their
+#: equalities, the body's own inertia (5.3 kg) 0.01 mm, as the plain quartic's single joint.
+#: The extra joints move a few millimetres (or a few hundredths of a radian) over their
+#: coordinate's range, so this adds little to the coordinate's inertia (the report gives it).
+COUPLING_ARMATURE = 1.0
 
 
 @dataclass
@@ -86,6 +114,33 @@ class BuildResult:
     notes: list[str] = field(default_factory=list)
 
 
+@dataclass
+class _CoupledAxis:
+    """A skeleton axis (or coupled coordinate) that a non-linear function of a coordinate moves."""
+
+    name: str  # its MuJoCo joint
+    body: str
+    kind: str  # "hinge" or "slide"
+    base: str  # the independent coordinate driving it
+    rel: Callable[[np.ndarray], np.ndarray]  # its value minus its reference value, of the base's value
+
+    @property
+    def units(self) -> str:
+        return "rad" if self.kind == "hinge" else "m"
+
+
+@dataclass
+class _PlannedAxis:
+    """One coupled axis of a coordinate's :class:`~o2m.functions.CouplingFit`."""
+
+    fit: CouplingFit
+    index: int  # the axis's index in the fit
+    axes: list[_CoupledAxis]  # every axis of the fit, in order
+    inner_names: list[str]  # the fit's inner joints, in order
+    lo: float
+    hi: float
+
+
 def _linear(fn: Callable[[np.ndarray], np.ndarray], lo: float, hi: float) -> tuple[float, float] | None:
     """(slope, intercept) when ``fn`` is linear on [lo, hi] to 1e-12 (relative), else None."""
     x = np.linspace(lo, hi, _LINEAR_SAMPLES)
@@ -111,6 +166,11 @@ class _Driver:
         return _Driver(self.base, lambda x: f(inner(x)))
 
 
+def _relative(driver: _Driver, ref: float) -> Callable[[np.ndarray], np.ndarray]:
+    """x -> driver.fn(x) - ref: a joint's value relative to its reference value."""
+    return lambda x: np.asarray(driver.fn(np.asarray(x, dtype=float)), dtype=float) - ref
+
+
 class MjcfBuilder:
     """Builds an ``MjSpec`` from a skeleton; :func:`add_geometry` adds its geometry after."""
 
@@ -129,6 +189,14 @@ class MjcfBuilder:
         self.ground_frames: dict[str, Transform] = {"ground": Transform()}
         #: Exact attribute values by (MJCF tag, name): MuJoCo's XML writer prints 6 digits.
         self.exact: dict[tuple[str, str], dict[str, np.ndarray | float]] = {}
+        #: Each skeleton joint's body, type, axis and anchor, for the extra joints of its coupling.
+        self._joint_frames: dict[str, tuple[mujoco.MjsBody, mujoco.mjtJoint, np.ndarray, np.ndarray]] = {}
+        #: Records of the extra joints made for a coupled joint, listed after it.
+        self._extra_records: dict[str, list[JointRecord]] = {}
+        #: The extra joints of each coupled joint, by its name.
+        self._extras_of: dict[str, list[str]] = {}
+        #: The fitted couplings of the skeleton's coupled axes, by MuJoCo joint name.
+        self._planned: dict[str, _PlannedAxis] = {}
 
     # -- coordinates -------------------------------------------------------------------
     def _base_ref(self, name: str) -> float:
@@ -241,11 +309,13 @@ class MjcfBuilder:
         spec.compiler.autolimits = True
         spec.option.timestep = 0.002
         spec.option.gravity = OSIM_TO_MJ @ self.skel.gravity
+        self._plan_couplings()
         for joint in self._ordered_joints():
             self._add_joint(joint)
         for c in self.skel.coordinates.values():
             if c.locked:
                 self.result.notes.append(f"locked coordinate '{c.name}' folded into fixed transforms at {c.default:g}")
+        self._set_extra_armature()
         for marker in self.skel.markers:
             body = self.bodies[marker.body]
             pos = marker.position if marker.body != "ground" else OSIM_TO_MJ @ marker.position
@@ -289,6 +359,170 @@ class MjcfBuilder:
                 ref = r0[i]
             self._add_mj_joint(body, joint, ax, kind, axis, pos, ref)
 
+    # -- couplings beyond a quartic ------------------------------------------------------
+    def _mj_joint_name(self, joint: Joint, ax: TransformAxis) -> tuple[str, bool]:
+        """The MuJoCo joint name of a moving axis, and whether it is its coordinate's joint."""
+        is_coord = self.coord_joint.get(ax.coordinate, (None, None))[1] is ax
+        return (ax.coordinate if is_coord else f"{joint.name}_{ax.name}"), is_coord
+
+    def coupled_axes(self) -> tuple[list[_CoupledAxis], dict[str, int]]:
+        """Every moving skeleton axis that a non-linear function of an independent coordinate
+        drives (transform axes and coupled coordinates), in build order; and each body's number
+        of MuJoCo joints."""
+        q0 = {name: self.ref[name] for name in self.skel.coordinates}
+        out, dofs = [], {}
+        for joint in self._ordered_joints():
+            moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
+            moving = [(ax, kind) for ax, kind in moving if not self.is_fixed(ax)]
+            dofs[joint.child] = len(moving)
+            for ax, kind in moving:
+                name, is_coord = self._mj_joint_name(joint, ax)
+                if is_coord and self.drivers[ax.coordinate].base == ax.coordinate:
+                    continue
+                driver = self.drivers[ax.coordinate] if is_coord else self._axis_driver(ax)
+                base = driver.base
+                if base not in self.coord_joint:
+                    continue  # couple() reports it
+                ref = ax.value(q0)
+                lo, hi = self._coupling_range(base)
+                rel = _relative(driver, ref)
+                if _linear(rel, lo, hi) is None:
+                    out.append(_CoupledAxis(name, joint.child, kind, base, rel))
+        return out, dofs
+
+    def coupling_fit(self, joint: str) -> AxisFit | None:
+        """The fit of skeleton coupled joint ``joint`` (after :meth:`build`): its main joint, outer
+        joints and errors; None for a joint that is not a non-linear skeleton coupling."""
+        planned = self._planned.get(joint)
+        return None if planned is None else planned.fit.axes[planned.index]
+
+    def _coupling_range(self, base: str) -> tuple[float, float]:
+        """Where a coupling driven by coordinate ``base`` is fitted: its range, with its reference."""
+        lo, hi = self.fit_range(base, self.coord_joint[base][1].kind)
+        return min(lo, self.ref[base]), max(hi, self.ref[base])
+
+    def _plan_couplings(self) -> None:
+        """Fit every coordinate's non-linear skeleton couplings together (they may share inner
+        joints) and choose their joints, within :data:`MAX_BODY_DOFS` per body.
+
+        Start (when a plain quartic misses :data:`COUPLING_TARGET`): one inner joint on the body
+        with the most room and one outer joint for each axis that misses, worst first, while its
+        body has room. Then, while an axis still misses and its body has room: a new inner joint
+        on it with an outer joint (two joints), else an outer joint of an inner joint it has none
+        of yet (one joint); kept only if that axis's error drops below COUPLING_GAIN times what it
+        was and no axis of the coordinate gets worse than the worst was."""
+        axes, dofs = self.coupled_axes()
+        by_base: dict[str, list[_CoupledAxis]] = {}
+        for a in axes:
+            by_base.setdefault(a.base, []).append(a)
+        for base, group in by_base.items():
+            lo, hi = self._coupling_range(base)
+            x0 = self.ref[base]
+            fns = [a.rel for a in group]
+            targets = [COUPLING_TARGET[a.units] for a in group]
+
+            def fit(uses, hosts, start=(), fns=fns, targets=targets, lo=lo, hi=hi, x0=x0):
+                return fit_couplings(fns, lo, hi, x0, targets=targets, uses=uses, hosts=hosts, start_shapes=start,
+                                     margin=COUPLING_MARGIN)
+
+            best = fit([[] for _ in group], [])
+            uses: list[list[int]] = [[] for _ in group]
+            hosts: list[int] = []
+            room = {a.body: MAX_BODY_DOFS - dofs[a.body] for a in group}
+
+            def ratios(f: CouplingFit, targets=targets) -> list[float]:
+                return [ax.max_error / tg for ax, tg in zip(f.axes, targets, strict=True)]
+
+            missing = sorted((i for i, r in enumerate(ratios(best)) if r > 1), key=lambda i: -ratios(best)[i])
+            if missing:
+                need = {b: sum(group[i].body == b for i in missing) for b in room}
+                host_body = max(room, key=lambda b: room[b] - need[b])  # first such body on ties
+                if room[host_body] >= 1:
+                    host = next((i for i in missing if group[i].body == host_body),
+                                next(i for i, a in enumerate(group) if a.body == host_body))
+                    hosts.append(host)
+                    room[host_body] -= 1
+                    for i in missing:
+                        if room[group[i].body] >= 1:
+                            uses[i].append(0)
+                            room[group[i].body] -= 1
+                    if any(uses):
+                        best = fit(uses, hosts)
+                    else:
+                        hosts = []
+            done: set[int] = set()
+            while hosts:
+                r = ratios(best)
+                order = sorted((i for i in range(len(group)) if r[i] > 1 and i not in done), key=lambda i: -r[i])
+                move = None
+                for i in order:
+                    b = group[i].body
+                    if room[b] >= 2:
+                        move = (i, [*hosts, i], len(hosts), 2)
+                        break
+                    unused = [k for k in range(len(hosts)) if k not in uses[i]]
+                    if room[b] >= 1 and unused:
+                        move = (i, hosts, unused[0], 1)
+                        break
+                if move is None:
+                    break
+                i, new_hosts, k, cost = move
+                new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
+                trial = fit(new_uses, new_hosts, best.shapes)
+                if trial.axes[i].max_error <= COUPLING_GAIN * best.axes[i].max_error and \
+                        max(ratios(trial)) <= max(r):
+                    best, uses, hosts = trial, new_uses, list(new_hosts)
+                    room[group[i].body] -= cost
+                else:
+                    done.add(i)
+            counts: dict[str, int] = {}
+            inner_names = []
+            for h in best.hosts:
+                counts[group[h].name] = counts.get(group[h].name, 0) + 1
+                inner_names.append(f"{group[h].name}_inner{counts[group[h].name]}")
+            for i, a in enumerate(group):
+                self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi)
+
+    def _set_extra_armature(self) -> None:
+        """Give every extra joint of a coupled axis :data:`COUPLING_ARMATURE` times the main
+        joint's own inertia at the reference pose (the skeleton compiled as built so far), and
+        add to each axis's approximation how much its extra joints add to the inertia of its
+        coordinate at most: Σ armature (d joint / d coordinate)² over the coordinate's range."""
+        mains = self._extras_of
+        if not mains:
+            return
+        try:
+            m = self.spec.compile()
+        except ValueError:
+            return  # the conversion's own compile reports what is wrong
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        inertia = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, inertia)
+        approx = {a.joint: a for a in self.result.approximations if a.joint}
+        for main, recs in mains.items():
+            dof = int(m.jnt_dofadr[m.joint(main).id])
+            armature = COUPLING_ARMATURE * float(inertia[dof, dof] - m.dof_armature[dof])
+            for name in recs:
+                self.spec.joint(name).armature = armature
+            planned = self._planned[main]
+            fit, i = planned.fit, planned.index
+            x = np.linspace(planned.lo, planned.hi, 2001)
+            dx = x - fit.x0
+            dinner = [np.polynomial.polynomial.polyval(dx, np.polynomial.polynomial.polyder(c)) for c in fit.inners]
+            inner = fit.inner_values(x)
+            slopes = [dinner[k] for k in range(fit.n_inner) if fit.hosts[k] == i]
+            slopes += [np.polynomial.polynomial.polyval(inner[k], np.polynomial.polynomial.polyder(c)) * dinner[k]
+                       for k, c in fit.axes[i].outers]
+            added = float(np.max(sum(armature * s ** 2 for s in slopes)))
+            a = approx.get(main)
+            if a is not None:
+                unit = "kg" if m.jnt_type[m.joint(main).id] == mujoco.mjtJoint.mjJNT_SLIDE else "kg m^2"
+                base = planned.axes[i].base
+                coord_unit = "kg m^2" if self.coord_joint[base][1].kind == "rotation" else "kg"
+                a.detail += (f"; armature {armature:.3g} {unit} each, adding at most {added:.3g} {coord_unit} "
+                             f"to '{base}'")
+
     def _set_inertial(self, body: mujoco.MjsBody, joint: Joint) -> None:
         b = self.skel.bodies[joint.child]
         mass, inertia = b.mass, b.inertia.copy()
@@ -328,15 +562,15 @@ class MjcfBuilder:
     def _add_mj_joint(self, body: mujoco.MjsBody, joint: Joint, ax: TransformAxis, kind: str,
                       axis: np.ndarray, pos: np.ndarray, ref: float) -> None:
         coord = self.skel.coordinates[ax.coordinate]
-        is_coord = self.coord_joint.get(ax.coordinate, (None, None))[1] is ax
-        name = coord.name if is_coord else f"{joint.name}_{ax.name}"
-        if any(r.name == name for r in self.result.joints):
+        name, is_coord = self._mj_joint_name(joint, ax)
+        if name in self._joint_frames or any(r.name == name for r in self.result.joints):
             raise self.doc.error(ax.element, f"would make a second MuJoCo joint named '{name}'")
         jtype = mujoco.mjtJoint.mjJNT_SLIDE if kind == "slide" else mujoco.mjtJoint.mjJNT_HINGE
         mj = body.add_joint(name=name, type=jtype,
                             axis=axis / np.linalg.norm(axis), pos=pos, ref=ref)
         rec = JointRecord(name, kind, joint.name, ax.name, coord.name if is_coord else None, None, "coordinate")
         self.exact[("joint", name)] = {"axis": axis / np.linalg.norm(axis), "pos": pos, "ref": ref}
+        self._joint_frames[name] = (body, jtype, axis / np.linalg.norm(axis), pos)
         if is_coord:
             self.exact[("joint", name)]["range"] = np.array(coord.range)
         if is_coord:
@@ -344,16 +578,23 @@ class MjcfBuilder:
             clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
             mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE
             if self.drivers[coord.name].base != coord.name:
-                self.couple(rec, self.drivers[coord.name], ref, coord.element)
+                self.couple(rec, self.drivers[coord.name], ref, coord.element, high_order=True)
         else:
-            self.couple(rec, self._axis_driver(ax), ref, ax.element)
+            self.couple(rec, self._axis_driver(ax), ref, ax.element, high_order=True)
         self.result.joints.append(rec)
+        self.result.joints.extend(self._extra_records.pop(name, []))
 
-    def couple(self, rec: JointRecord, driver: _Driver, ref: float, source: etree._Element) -> None:
+    def couple(self, rec: JointRecord, driver: _Driver, ref: float, source: etree._Element, *,
+               high_order: bool = False) -> None:
         """Drive MuJoCo joint ``rec`` (value = driver.fn(base)) from the base coordinate's joint.
 
         ``ref`` is the joint's reference value; ``source`` is the OpenSim element the coupling
-        comes from (named in errors and in the approximation it records)."""
+        comes from (named in errors and in the approximation it records). A non-linear coupling
+        is a minimax quartic; with ``high_order`` (skeleton axes and couplers, which this builder
+        adds itself and has planned in :meth:`_plan_couplings`), it is the planned main quartic,
+        and the joint's extra joints follow it on the same body and axis
+        (:meth:`_add_extra_joints`). Callers outside this class (path-point carriers) get the
+        plain quartic by default."""
         base = driver.base
         if base not in self.coord_joint:
             raise self.doc.error(source, f"depends on coordinate '{base}', which has no MuJoCo joint")
@@ -361,23 +602,74 @@ class MjcfBuilder:
         base_kind = self.coord_joint[base][1].kind
         lo, hi = self.fit_range(base, base_kind)
         lo, hi = min(lo, base_ref), max(hi, base_ref)
-        rel = lambda x: np.asarray(driver.fn(np.asarray(x, dtype=float)), dtype=float) - ref  # noqa: E731
+        rel = _relative(driver, ref)
         lin = _linear(rel, lo, hi)
+        units = "rad" if rec.kind == "hinge" else "m"
+        extra: list[tuple[str, str, np.ndarray, str]] = []
         if lin is not None:
             slope, icpt = lin
             coef = np.array([icpt + slope * base_ref, slope, 0.0, 0.0, 0.0])
             rec.relation = "linear"
-        else:
+        elif not high_order or rec.name not in self._planned:
             fit = fit_polynomial(rel, lo, hi, base_ref, degree=4, exact_at_x0=True)
             coef = np.asarray(fit.coef, dtype=float)
             rec.relation = "quartic fit"
-            units = "rad" if rec.kind == "hinge" else "m"
             self.result.approximations.append(Approximation(
                 source.tag, source.get("name", rec.name),
                 f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]",
                 float(fit.max_error), units, f"rms {fit.rms_error:.3g} {units}", joint=rec.name))
+        else:
+            planned = self._planned[rec.name]
+            cfit, ax = planned.fit, planned.fit.axes[planned.index]
+            coef = np.asarray(ax.main, dtype=float)
+            rec.relation = "quartic fit"
+            what = f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]"
+            detail = f"rms {ax.rms_error:.3g} {units}"
+            extra = self._extra_joints(rec, planned)
+            if extra:
+                rec.relation = f"quartic fit + {len(extra)} extra joints"
+                what = (f"MuJoCo joint '{rec.name}' and its extra joints {', '.join(e[0] for e in extra)} follow "
+                        f"'{base}' by a {cfit.structure(planned.index)}, fitted over [{lo:.4g}, {hi:.4g}]")
+                margin = planned.fit.margin
+                base_units = "rad" if base_kind == "rotation" else "m"
+                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}; up to {margin:.3g} {base_units} "
+                           f"beyond the range: {ax.margin_error:.3g} {units}; the extra joints move through at most "
+                           f"{ax.amplitude:.3g} {units}")
+            self.result.approximations.append(Approximation(
+                source.tag, source.get("name", rec.name), what, float(ax.max_error), units, detail, joint=rec.name))
         rec.driven_by = base
         self._equality(rec.name, base, coef, f"{rec.name}_from_{base}")
+        if extra:
+            self._add_extra_joints(rec, extra, source)
+
+    def _extra_joints(self, rec: JointRecord, planned: _PlannedAxis) -> list[tuple[str, str, np.ndarray, str]]:
+        """The extra joints of coupled joint ``rec``: (name, driving joint, equality
+        coefficients, role) for each inner joint it carries (``<joint>_inner<k>``, driven by the
+        coordinate) and each outer joint (``<joint>_outer<k>``, driven by an inner joint)."""
+        fit, i = planned.fit, planned.index
+        base = planned.axes[i].base
+        out = [(planned.inner_names[k], base, fit.inners[k], "inner") for k in range(fit.n_inner) if fit.hosts[k] == i]
+        out += [(f"{rec.name}_outer{n + 1}", planned.inner_names[k], c, "outer")
+                for n, (k, c) in enumerate(fit.axes[i].outers)]
+        return out
+
+    def _add_extra_joints(self, rec: JointRecord, extra: list[tuple[str, str, np.ndarray, str]],
+                          source: etree._Element) -> None:
+        """Add ``extra`` right after joint ``rec`` on its body, with its type, axis and anchor (so
+        that their values add to its value), and their equalities. Each extra joint is 0 at the
+        reference pose and is a real degree of freedom of the body; its armature is set by
+        :meth:`_set_extra_armature` once the skeleton is built."""
+        body, jtype, axis, pos = self._joint_frames[rec.name]
+        for name, driver, coef, role in extra:
+            if name in self._joint_frames or any(r.name == name for r in self.result.joints):
+                raise self.doc.error(source, f"would make a second MuJoCo joint named '{name}'")
+            body.add_joint(name=name, type=jtype, axis=axis, pos=pos, ref=0.0, armature=1.0)  # see _set_extra_armature
+            self.exact[("joint", name)] = {"axis": axis, "pos": pos, "ref": 0.0}
+            self._joint_frames[name] = (body, jtype, axis, pos)
+            self._extras_of.setdefault(rec.name, []).append(name)
+            self._extra_records.setdefault(rec.name, []).append(JointRecord(
+                name, rec.kind, rec.opensim_joint, f"{rec.axis}/{role}", None, driver, f"{role} quartic"))
+            self._equality(name, driver, np.asarray(coef, dtype=float), f"{name}_from_{driver}")
 
     def _equality(self, joint1: str, joint2: str | None, coef: np.ndarray, name: str) -> None:
         eq = self.spec.add_equality(name=name, type=mujoco.mjtEq.mjEQ_JOINT, objtype=mujoco.mjtObj.mjOBJ_JOINT,

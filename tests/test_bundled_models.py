@@ -4,9 +4,14 @@ Two measurements per model:
 * structure: every MuJoCo joint set from OpenSim's own values (no equality used). This checks
   bodies, frames, axes, inertia and the Y-up to Z-up mapping, and must be exact.
 * the model as a user runs it: dependent joints follow the model's own equality constraints.
-  Bodies whose motion involves no approximated coupling must be within 0.1 mm and 0.05 deg.
-  Bodies below a coupling that MuJoCo can only approximate (a quartic fitted to a spline)
-  must be within the same tolerance plus the fit errors recorded in the conversion report.
+  Issue #2's targets: every body within 0.1 mm and 0.05 deg of OpenSim over 200 random poses
+  (seed 0), with no allowance for fitted couplings. Spline couplings are sums of joints
+  (a main quartic plus inner and outer joints, o2m.functions.fit_couplings).
+
+Leg6Dof9Musc's patella misses the position target (0.17 mm): its knee translations and
+patella axes (five spline axes of one coordinate on two bodies) have only the six extra
+degrees of freedom MuJoCo leaves those bodies (at most 6 per body), enough for one shared
+inner joint (see the README's "Fidelity today").
 """
 
 from __future__ import annotations
@@ -17,16 +22,25 @@ import pytest
 
 from o2m import models
 from o2m.convert import convert
+from o2m.document import load_document
+from o2m.mjcf import MjcfBuilder
+from o2m.skeleton import read_skeleton
 from o2m.validate import compare_kinematics
 
-from .conftest import approximation_budget, require_mirror
+from .conftest import require_mirror
 
 POSES = 200
 POS_TOL = 1e-4  # m (0.1 mm)
 ANG_TOL = np.deg2rad(0.05)  # rad
 EXACT_TOL = 1e-6  # m and rad: what "exact" means after the MJCF's printed precision
+#: Worst violation of a coupling's equalities while a model hangs under gravity (m, rad).
+HANGING_VIOLATION = {"slide": 2e-5, "hinge": 1e-3}
 
 NAMES = [n for n in models.BUNDLED if n != "mobl_arms_no_wrap"] + ["mobl_arms_no_wrap"]
+#: Known misses of issue #2's position target, with the reason.
+POSITION_MISSES = {
+    "leg6dof9musc": "patella 0.17 mm: MuJoCo's 6 dofs per body leave one inner joint for its five spline axes",
+}
 
 
 @pytest.fixture(scope="module", params=NAMES)
@@ -38,6 +52,14 @@ def converted(request, tmp_path_factory):
     return request.param, fetched.osim, conv
 
 
+@pytest.fixture(scope="module")
+def kinematics(converted):
+    name, osim, conv = converted
+    rep = compare_kinematics(osim, conv.xml, n_poses=POSES, seed=0)
+    assert rep.n_poses == POSES and not rep.missing_bodies
+    return rep
+
+
 def test_structure_is_exact(converted):
     name, osim, conv = converted
     rep = compare_kinematics(osim, conv.xml, n_poses=POSES, seed=1, dependents="opensim")
@@ -47,17 +69,18 @@ def test_structure_is_exact(converted):
     assert rep.max_ang_error < EXACT_TOL, rep.summary()
 
 
-def test_kinematics_match_opensim(converted):
-    name, osim, conv = converted
-    rep = compare_kinematics(osim, conv.xml, n_poses=POSES, seed=0)
-    budget = approximation_budget(conv.xml, conv.report.approximations)
-    assert rep.n_poses == POSES and not rep.missing_bodies
-    for body, err in rep.bodies.items():
-        pos_extra, ang_extra = budget[body]
-        assert err.max_pos <= POS_TOL + pos_extra, f"{name}/{body}: {err.max_pos * 1e3:.4f} mm\n{rep.summary()}"
-        assert err.max_ang <= ANG_TOL + ang_extra, f"{name}/{body}: {np.rad2deg(err.max_ang):.4f} deg"
-    if not any(a.joint for a in conv.report.approximations):
-        assert rep.ok(), rep.summary()
+def test_every_body_within_0_1_mm(converted, kinematics, request):
+    name = converted[0]
+    if name in POSITION_MISSES:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=POSITION_MISSES[name]))
+    for body, err in kinematics.bodies.items():
+        assert err.max_pos <= POS_TOL, f"{name}/{body}: {err.max_pos * 1e3:.4f} mm\n{kinematics.summary()}"
+
+
+def test_every_body_within_0_05_deg(converted, kinematics):
+    name = converted[0]
+    for body, err in kinematics.bodies.items():
+        assert err.max_ang <= ANG_TOL, f"{name}/{body}: {np.rad2deg(err.max_ang):.4f} deg\n{kinematics.summary()}"
 
 
 def test_mass_and_centre_of_mass(converted):
@@ -86,3 +109,93 @@ def test_default_pose_satisfies_every_equality(converted):
     mujoco.mj_forward(m, d)
     eq_rows = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
     assert np.all(np.abs(d.efc_pos[: d.nefc][eq_rows]) < 1e-12)
+
+
+def _extra_joints(m: mujoco.MjModel) -> dict[str, str]:
+    """Extra coupling joints of ``m``: name -> the coupled joint they belong to."""
+    out = {}
+    for i in range(m.njnt):
+        name = m.joint(i).name
+        for role in ("_inner", "_outer"):
+            head, _, k = name.rpartition(role)
+            if head and k.isdigit():
+                out[name] = head
+    return out
+
+
+def test_extra_joints_add_to_their_axis(converted):
+    """Every extra joint of a coupling sits on its coupled joint's body, right after it, with its
+    type, axis and anchor, is 0 at the default pose and follows an equality: inner joints the
+    coordinate, outer joints an inner joint. Path-point carriers have none."""
+    name, osim, conv = converted
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    extra = _extra_joints(m)
+    if name in ("gait10dof18musc", "gait2354", "gait2392", "leg6dof9musc"):
+        assert extra, "the knee splines get extra joints"
+    drivers = {m.joint(int(m.eq_obj1id[e])).name: m.joint(int(m.eq_obj2id[e])).name
+               for e in range(m.neq) if m.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT and m.eq_obj2id[e] >= 0}
+    records = {j.name: j for j in conv.report.joints}
+    for joint, main in extra.items():
+        j, k = m.joint(joint), m.joint(main)
+        assert j.bodyid[0] == k.bodyid[0] and j.type[0] == k.type[0], joint
+        assert not m.body(int(j.bodyid[0])).name.endswith("_carrier")
+        np.testing.assert_allclose(j.axis, k.axis, atol=1e-15)
+        np.testing.assert_allclose(j.pos, k.pos, atol=1e-15)
+        assert m.qpos0[j.qposadr[0]] == 0.0
+        if "_inner" in joint:
+            assert drivers[joint] == drivers[main] == records[main].driven_by
+        else:
+            assert "_inner" in drivers[joint] and drivers[joint] in extra
+    for main in set(extra.values()):  # right after their main joint (hinges must be, to add up)
+        ids = sorted(m.joint(n).id for n, k in extra.items() if k == main)
+        assert ids == list(range(m.joint(main).id + 1, m.joint(main).id + 1 + len(ids))), main
+    carriers = [r for r in conv.report.joints if m.body(int(m.joint(r.name).bodyid[0])).name.endswith("_carrier")]
+    assert all(r.relation in ("linear", "quartic fit") for r in carriers)
+
+
+def test_coupled_axes_follow_opensim_hanging_under_gravity(converted):
+    """With the pelvis welded to the world, 1 s under gravity from the default pose: each coupled
+    axis (its joints' sum) stays within its fit (inside the range or in its margin) plus a small
+    equality violation of OpenSim's function of the coordinate; every coupling equality holds
+    within HANGING_VIOLATION (extra joints much lighter than their body made them sag 0.2 mm)."""
+    name, osim, conv = converted
+    full = mujoco.MjModel.from_xml_path(str(conv.xml))
+    if not _extra_joints(full):
+        pytest.skip("no extra coupling joints")
+    spec = mujoco.MjSpec.from_file(str(conv.xml))
+    for j in list(spec.body("pelvis").joints):
+        spec.delete(j)
+    for key in list(spec.keys):
+        spec.delete(key)
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    key = full.key("default-pose").qpos
+    for i in range(m.njnt):
+        d.qpos[m.jnt_qposadr[i]] = key[full.jnt_qposadr[full.joint(m.joint(i).name).id]]
+    builder = MjcfBuilder(read_skeleton(load_document(osim)))
+    builder.build()
+    extra = _extra_joints(m)
+    axes = []
+    for a in builder.coupled_axes()[0]:
+        fit = builder.coupling_fit(a.name)
+        ids = [m.joint(a.name).id] + [m.joint(n).id for n, main in extra.items() if main == a.name]
+        axes.append((a, fit, ids, m.joint(a.base).id))
+    axis_of_eq = {e: i for e in range(m.neq) for i, (_, _, ids, _) in enumerate(axes) if m.eq_obj1id[e] in ids}
+    worst = np.zeros(len(axes))
+    violation = np.zeros(len(axes))
+    for _ in range(500):
+        mujoco.mj_step(m, d)
+        for i, (a, _, ids, base) in enumerate(axes):
+            value = sum(d.qpos[m.jnt_qposadr[j]] - m.qpos0[m.jnt_qposadr[j]] for j in ids)
+            truth = float(a.rel(np.array([d.qpos[m.jnt_qposadr[base]]]))[0])
+            worst[i] = max(worst[i], abs(value - truth))
+        for r in np.flatnonzero(d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY):
+            i = axis_of_eq.get(int(d.efc_id[r]))
+            if i is not None:
+                violation[i] = max(violation[i], abs(float(d.efc_pos[r])))
+    assert np.all(np.isfinite(d.qpos))
+    for i, (a, fit, _, _) in enumerate(axes):
+        tol = HANGING_VIOLATION[a.kind]
+        assert violation[i] <= tol, f"{name}/{a.name}: equality violated by {violation[i]:.3g}"
+        allowed = max(fit.max_error, fit.margin_error) + tol
+        assert worst[i] <= allowed, f"{name}/{a.name}: {worst[i]:.3g} off OpenSim (fit {allowed - tol:.3g})"
