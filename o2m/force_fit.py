@@ -47,7 +47,8 @@ import numpy as np
 from o2m.mujoco_sim import STATE_SPEC, initial_state
 from o2m.muscles import _mj_fl, _mj_fv
 
-__all__ = ["ForceFit", "MuscleForceFit", "ForceSamples", "TINY", "fit_forces", "sample_states", "static_curves"]
+__all__ = ["ForceFit", "MuscleForceFit", "ForceSamples", "TINY", "fit_forces", "pulling_force", "sample_states",
+           "static_curves"]
 
 TINY = 1e-9
 """``fpmax`` of a fitted muscle: MuJoCo needs it positive; the passive force is the tendon's spring."""
@@ -115,6 +116,27 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
     return ForceSamples(list(muscles), np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
                         np.array([r[2] for r in rows], float), np.array([r[3] for r in rows], float),
                         np.array([r[4] for r in rows]))
+
+
+def pulling_force(model: mujoco.MjModel, muscle: str, length, velocity, activation) -> np.ndarray:
+    """The force (N, positive when pulling) a MuJoCo muscle and its tendon's spring and damping
+    exert at actuator ``length`` (m), ``velocity`` (m/s) and ``activation``, as MuJoCo computes it
+    (``mju_muscleGain``, ``mju_muscleBias`` and the tendon's polynomial spring with its dead band);
+    arrays broadcast. The muscle's tendon transmission must have gear 1, as o2m writes it."""
+    from o2m.muscles import _mj_fp
+
+    a = model.actuator(muscle).id
+    t = int(model.actuator_trnid[a, 0])
+    g, b, lr = model.actuator_gainprm[a], model.actuator_biasprm[a], model.actuator_lengthrange[a]
+    L, V = np.asarray(length, float), np.asarray(velocity, float)
+    L0 = (lr[1] - lr[0]) / (g[1] - g[0])
+    Ln = g[0] + (L - lr[0]) / L0
+    active = g[2] * np.asarray(activation, float) * _mj_fl(Ln, g[4], g[5]) * _mj_fv(V / (L0 * g[6]), g[8])
+    passive = b[2] * _mj_fp(g[0] + (L - lr[0]) / ((lr[1] - lr[0]) / (b[1] - b[0])), b[5], b[7])
+    lo, hi = model.tendon_lengthspring[t]
+    d = np.where(L > hi, L - hi, np.where(L < lo, L - lo, 0.0))
+    k1, (k2, k3) = model.tendon_stiffness[t], model.tendon_stiffnesspoly[t]
+    return active + passive + d * (k1 + d * (k2 + d * k3)) + model.tendon_damping[t] * V
 
 
 def static_curves(osim_path: str | os.PathLike[str], model: mujoco.MjModel) -> dict[str, tuple[np.ndarray, ...]]:

@@ -223,4 +223,7 @@ def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[
 def fitted_model(exp: Experiment, forces: ForceFit, fit: FitResult) -> mujoco.MjModel:
     """The converted model with the muscle force fit and the CMA-ES parameters written in."""
     force_model = forces.apply(exp.model)
-    return parameter_space(force_model, exp.dofs, exp.muscles).apply(force_model, fit.x)
+    space = parameter_space(force_model, exp.dofs, exp.muscles)
+    if fit.names != space.names:
+        raise ValueError("the CMA-ES fit has other parameters than this model; rerun `python -m o2m paper --refit`")
+    return space.apply(force_model, fit.x)

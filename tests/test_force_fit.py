@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from o2m.force_fit import ForceFit, ForceSamples, MuscleForceFit, _force, _start, fit_forces
+from o2m.force_fit import ForceFit, ForceSamples, MuscleForceFit, _force, _start, fit_forces, pulling_force
 
 #: A muscle on a fixed tendon of a slide joint, so that the actuator length is the joint position.
 SLIDER = """
@@ -41,6 +41,19 @@ def test_applied_model_produces_the_fitted_force():
         mujoco.mj_forward(m, d)
         pulling = -(d.qfrc_actuator[0] + d.qfrc_passive[0])  # the muscle pulls towards shorter lengths
         assert pulling == pytest.approx(float(_known().force_at(q, v, a)), rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize("fitted", [False, True])
+def test_pulling_force_is_what_mujoco_applies(fitted):
+    m = ForceFit({"m": _known()}).apply(_model()) if fitted else _model()
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        q, v, a = rng.uniform(0.12, 0.38), rng.uniform(-0.5, 0.5), rng.uniform(0, 1)
+        d.qpos[0], d.qvel[0], d.act[0] = q, v, a
+        mujoco.mj_forward(m, d)
+        assert -(d.qfrc_actuator[0] + d.qfrc_passive[0]) == pytest.approx(float(pulling_force(m, "m", q, v, a)),
+                                                                          rel=1e-9, abs=1e-9)
 
 
 def test_written_mjcf_matches_the_applied_model(tmp_path):
