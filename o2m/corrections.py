@@ -14,6 +14,12 @@ every muscle (a 50-dimensional block for MoBL-ARMS) CMA-ES searches while the ot
 fixed, each candidate simulated only from the start of the block's support to ``lookahead``
 knots past its end, from the state the current corrections reach there. Each block is accepted
 only if it lowers the trajectory's whole cost, so the result is never worse than no correction.
+
+The search can start from :func:`force_matching_start` (o2m's addition to the paper): the
+correction that, along OpenSim's own trajectory, would make every MuJoCo muscle pull with
+OpenSim's recorded tendon force (the activation that gives that force, through MuJoCo's
+activation dynamics inverted, as a 10 Hz spline). :func:`fit_corrections` starts from whichever
+of it and no correction costs less.
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ from scipy.interpolate import BSpline
 from o2m.mujoco_sim import controls_from_excitations, rollout
 
 __all__ = ["CorrectionResult", "KNOT_SPACING", "PENALTY", "bspline_basis", "corrected_excitations",
-           "fit_corrections"]
+           "fit_corrections", "force_matching_start"]
 
 KNOT_SPACING = 0.1
 """Seconds between spline knots (10 Hz)."""
@@ -53,6 +59,44 @@ def bspline_basis(times: np.ndarray, spacing: float = KNOT_SPACING) -> np.ndarra
 def corrected_excitations(excitations: np.ndarray, basis: np.ndarray, coef: np.ndarray) -> np.ndarray:
     """``clip(excitations + basis @ coef, 0, 1)``: excitations (T, M), basis (T, C), coef (C, M)."""
     return np.clip(excitations + basis @ coef, 0.0, 1.0)
+
+
+def force_matching_start(model: mujoco.MjModel, excitations: np.ndarray, muscles: Sequence[str],
+                         lengths: np.ndarray, velocities: np.ndarray, forces: np.ndarray, *,
+                         spacing: float = KNOT_SPACING) -> np.ndarray:
+    """Spline coefficients (n_coef, M) of the correction that matches OpenSim's muscle forces.
+
+    Args:
+        excitations: reference excitations, shape (T, M), every timestep.
+        lengths, velocities: MuJoCo actuator lengths (m) and velocities (m/s) at OpenSim's states
+            (:func:`o2m.force_fit.sample_states` with stride 1), shape (T, M), columns as ``muscles``.
+        forces: OpenSim's tendon forces (N) at those states, shape (T, M).
+
+    At each sample the activation that makes :func:`o2m.force_fit.pulling_force` equal OpenSim's
+    force (clipped to [0, 1]; where activation barely changes the force, the reference
+    excitation) is turned into the excitation MuJoCo's muscle dynamics need to follow it,
+    ``u = a + tau(a, u) da/dt``; the coefficients are the least-squares spline fit of the
+    difference from the reference excitations.
+    """
+    from o2m.force_fit import pulling_force
+
+    exc = np.asarray(excitations, float)
+    n_t, _ = exc.shape
+    dt = model.opt.timestep
+    need = exc.copy()
+    for j, name in enumerate(muscles):
+        a_id = model.actuator(name).id
+        passive = pulling_force(model, name, lengths[:, j], velocities[:, j], 0.0)
+        gain = pulling_force(model, name, lengths[:, j], velocities[:, j], 1.0) - passive
+        ok = gain > 1e-3 * model.actuator_gainprm[a_id, 2]
+        act = np.clip(np.where(ok, (forces[:, j] - passive) / np.where(ok, gain, 1.0), exc[:, j]), 0.0, 1.0)
+        rate = np.diff(act) / dt
+        t_act, t_deact = model.actuator_dynprm[a_id, :2]
+        tau = np.where(rate > 0, t_act * (0.5 + 1.5 * act[:-1]), t_deact / (0.5 + 1.5 * act[:-1]))
+        u = act[:-1] + tau * rate
+        need[:, j] = np.clip(np.append(u, u[-1]), 0.0, 1.0)
+    times = dt * np.arange(n_t)
+    return np.linalg.lstsq(bspline_basis(times, spacing), need - exc, rcond=None)[0]
 
 
 @dataclass
@@ -84,7 +128,7 @@ def fit_corrections(model: mujoco.MjModel, initial_state: np.ndarray, excitation
                     muscles: Sequence[str], reference: np.ndarray, dofs: Sequence[str], *,
                     penalty: float = PENALTY, spacing: float = KNOT_SPACING, generations: int = 20,
                     popsize: int | None = None, sigma0: float = 0.05, lookahead: int = 1, sweeps: int = 1,
-                    seed: int = 0, nthread: int | None = None) -> CorrectionResult:
+                    seed: int = 0, nthread: int | None = None, start: np.ndarray | None = None) -> CorrectionResult:
     """Fit corrective excitations for one trajectory (see the module docstring).
 
     Args:
@@ -95,6 +139,8 @@ def fit_corrections(model: mujoco.MjModel, initial_state: np.ndarray, excitation
         generations, popsize, sigma0: CMA-ES budget per block (sigma0 in excitation units).
         lookahead: knot intervals simulated past a block's support.
         sweeps: passes over all blocks.
+        start: spline coefficients (n_coef, M) to start from (e.g. :func:`force_matching_start`),
+            used when they cost less than no correction.
     """
     import cma
 
@@ -122,6 +168,11 @@ def fit_corrections(model: mujoco.MjModel, initial_state: np.ndarray, excitation
 
     cost0, q0, states = full_cost(coef)
     best_cost = cost0
+    if start is not None:
+        c, _, st = full_cost(np.clip(np.asarray(start, float), -1.0, 1.0))
+        evals += 1
+        if c < best_cost:
+            coef, best_cost, states = np.clip(np.asarray(start, float), -1.0, 1.0), c, st
     rng = np.random.default_rng(seed)
     for _ in range(sweeps):
         for j in range(n_c):

@@ -165,7 +165,8 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     t1 = time.perf_counter()
     for i in tqdm(test, desc="corrections", unit="set", disable=not progress):
         r = fit_corrections(fitted, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i],
-                            exp.dofs, generations=settings.correction_generations, seed=settings.seed + i)
+                            exp.dofs, generations=settings.correction_generations, seed=settings.seed + i,
+                            start=correction_start(exp, fitted, i))
         corr_err.append(np.mean(np.abs(r.coordinates - exp.reference[i]), axis=0))
         corr_size.append(np.mean(np.abs(r.correction), axis=0))
         q_corrected.append(r.coordinates)
@@ -193,6 +194,20 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def correction_start(exp: Experiment, model: mujoco.MjModel, i: int) -> np.ndarray | None:
+    """:func:`o2m.corrections.force_matching_start` for set ``i`` (None when the dataset has no tendon forces)."""
+    from o2m.corrections import force_matching_start
+
+    ds = exp.dataset
+    if not np.isfinite(ds.tendon_forces[i]).all():
+        return None
+    s = sample_states(model, ds.coordinates[[i]], ds.speeds[[i]], ds.opensim_activations[[i]], ds.tendon_forces[[i]],
+                      ds.coordinate_names, ds.muscle_names, stride=1)
+    cols = [ds.muscle_names.index(m) for m in exp.muscles]
+    return force_matching_start(model, ds.activations.values[i], exp.muscles, s.length[:, cols], s.velocity[:, cols],
+                                s.force[:, cols])
 
 
 def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[str], *, settings: Settings = FULL,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from o2m.activations import generate_activations
-from o2m.corrections import bspline_basis, fit_corrections
+from o2m.corrections import bspline_basis, corrected_excitations, fit_corrections
 from o2m.fitting import TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit
 from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout
 
@@ -134,3 +134,27 @@ def test_a_tendon_with_a_spring_gets_a_spring_scale():
     np.testing.assert_allclose(m.tendon_stiffnesspoly[t], [600.0, 3000.0])
     plain = parameter_space(pendulum(0.1), ["swing"], ["lifter"])
     assert "tendon_stiffness:lifter" in plain.names
+
+
+def test_force_matching_start_recovers_the_excitation_that_made_the_forces():
+    """Forces recorded from the true excitation, references from a weaker one: the start brings it back."""
+    from o2m.corrections import force_matching_start
+    from o2m.force_fit import pulling_force
+
+    model = pendulum(0.3)
+    sets = generate_activations(["lifter"], 1, seed=2, p_active=1.0)
+    true_exc = 0.2 + 0.6 * sets.values[0, :250]  # (250, 1)
+    init = initial_state(model, {"swing": 0.2})
+    tr = rollout(model, init, controls_from_excitations(model, ["lifter"], true_exc)[None])
+    a = model.actuator("lifter").id
+    lengths, velocities, forces = np.zeros((250, 1)), np.zeros((250, 1)), np.zeros((250, 1))
+    d = mujoco.MjData(model)
+    for k in range(250):
+        d.qpos[:], d.qvel[:] = tr.qpos[0, k], tr.qvel[0, k]
+        mujoco.mj_forward(model, d)
+        lengths[k], velocities[k] = d.actuator_length[a], d.actuator_velocity[a]
+        forces[k] = pulling_force(model, "lifter", lengths[k], velocities[k], tr.act[0, k])
+    reference = 0.5 * true_exc
+    coef = force_matching_start(model, reference, ["lifter"], lengths, velocities, forces)
+    recovered = corrected_excitations(reference, bspline_basis(0.002 * np.arange(250)), coef)
+    assert np.mean(np.abs(recovered - true_exc)) < 0.1 * np.mean(np.abs(reference - true_exc))

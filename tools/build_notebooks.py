@@ -376,7 +376,9 @@ makes MuJoCo follow OpenSim: per muscle, a correction shaped as a cubic spline w
 0.1 s (10 Hz) is added to the reference excitation (and clipped to [0, 1]). The corrections
 minimise the joint error plus an L2 penalty on their size. `o2m.corrections` optimises the
 spline coefficients block by block in time with CMA-ES and keeps a block only if it lowers the
-whole trajectory's cost.
+whole trajectory's cost. It starts from the better of no correction and the correction that,
+along OpenSim's own trajectory, would make every MuJoCo muscle pull with the tendon force OpenSim
+recorded (o2m's addition: the dataset keeps those forces).
 """),
     code(PARAMETERS),
     code('''
@@ -384,7 +386,7 @@ import numpy as np
 from o2m.corrections import PENALTY, fit_corrections
 from o2m.fitting import load_fit
 from o2m.force_fit import ForceFit
-from o2m.paper import fitted_model, load_experiment
+from o2m.paper import correction_start, fitted_model, load_experiment
 
 exp = load_experiment(DATA, OUT / "paper")
 results = DATA / "results"
@@ -393,8 +395,9 @@ if (results / "parameters.json").exists() and (results / "muscle_forces.json").e
 else:  # no stored fit (a fresh dataset): correct the converted model
     model = exp.model
 i = exp.dataset.test[0]
+start = correction_start(exp, model, i)  # the correction that would match OpenSim's recorded muscle forces
 res = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i], exp.dofs,
-                      generations=2 if QUICK else 6, seed=0)
+                      generations=2 if QUICK else 6, seed=0, start=start)
 print(f"penalty weight {PENALTY}; cost {res.cost0:.4f} -> {res.cost:.4f}; {res.evaluations} simulated windows")
 print("mean absolute joint error (rad):", dict(zip(exp.dofs, res.joint_mae0.round(3))), "->",
       dict(zip(exp.dofs, res.joint_mae.round(3))))
