@@ -24,9 +24,11 @@ parameter              MuJoCo field                bounds
 =====================  ==========================  =========================================
 
 Damping and stiffness can be zero in a converted model, so for them the searched variable is
-``log10(value + lower)``: its lower bound means exactly zero. A parameter starts at the converted
-model's value, so the start point reproduces the converted model exactly. CMA-ES searches a box
-normalised to [0, 1]^n.
+``log10(value + lower)``: its lower bound means exactly zero. A parameter starts at the model's
+value, so the start point reproduces the model exactly, and is searched within :data:`SPAN`
+decades of it (and within the bounds above): on MoBL-ARMS, the whole box let CMA-ES move tendon
+damping by two to three decades, which fitted a few training sets and made the test sets worse.
+CMA-ES searches that box normalised to [0, 1]^n.
 
 The objective (:class:`TrajectoryObjective`) is the paper's: the squared joint-position error
 against OpenSim, averaged over time and summed over the free DoFs and the training
@@ -67,6 +69,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
 ZERO_AT_LOWER = frozenset({"damping", "tendon_damping", "tendon_stiffness"})
 PENALTY = 1e-3
 """Weight of the squared log10 change of each parameter, rad² per decade²."""
+SPAN = 1.0
+"""Decades either side of its start value a parameter is searched in."""
 DIVERGED_COST = 10.0
 """Cost per DoF of a trajectory MuJoCo had to reset (rad²; about a 3-rad error throughout)."""
 
@@ -110,6 +114,8 @@ class ParameterSpace:
     lower: np.ndarray
     upper: np.ndarray
     _targets: list[tuple[str, int | tuple[int, ...]]] = field(default_factory=list, repr=False)
+    _shift: np.ndarray | None = field(default=None, repr=False)  # added to a value before its log10
+    span: float = SPAN
 
     def __len__(self) -> int:
         return len(self.names)
@@ -123,8 +129,7 @@ class ParameterSpace:
     def physical(self, x: np.ndarray) -> np.ndarray:
         """Physical values of the searched variables ``x`` (shape (n,)), in the units of :data:`BOUNDS`."""
         x = np.asarray(x, float)
-        shift = np.array([10.0 ** lo if kind in ZERO_AT_LOWER else 0.0
-                          for (kind, _), lo in zip(self._targets, self.lower, strict=False)])
+        shift = self._shift if self._shift is not None else np.zeros(len(self.names))
         return np.maximum(10.0 ** x - shift, 0.0)
 
     def values(self, x: np.ndarray) -> dict[str, float]:
@@ -157,20 +162,22 @@ class ParameterSpace:
 
 
 def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequence[str],
-                    bounds: dict[str, tuple[float, float]] = BOUNDS) -> ParameterSpace:
-    """The paper's parameter vector for ``model``: 2 per free DoF, 2 per muscle tendon, 1 per muscle."""
-    names, start, lo, hi, targets = [], [], [], [], []
+                    bounds: dict[str, tuple[float, float]] = BOUNDS, span: float = SPAN) -> ParameterSpace:
+    """The paper's parameter vector for ``model``: 2 per free DoF, 2 per muscle tendon, 1 per muscle.
+
+    Each is searched within ``span`` decades of its value in ``model`` and within ``bounds``.
+    """
+    names, start, lo, hi, targets, shifts = [], [], [], [], [], []
 
     def add(kind: str, element: str, idx, value: float) -> None:
         b_lo, b_hi = bounds[kind]
         names.append(f"{kind}:{element}")
-        if kind in ZERO_AT_LOWER:
-            start.append(np.log10(np.clip(value + b_lo, b_lo, b_hi + b_lo)))
-            hi.append(np.log10(b_hi + b_lo))
-        else:
-            start.append(np.log10(np.clip(value, b_lo, b_hi)))
-            hi.append(np.log10(b_hi))
-        lo.append(np.log10(b_lo))
+        shift = b_lo if kind in ZERO_AT_LOWER else 0.0
+        x0 = float(np.log10(np.clip(value + shift, b_lo, b_hi + shift)))
+        start.append(x0)
+        lo.append(max(float(np.log10(b_lo)), x0 - span))
+        hi.append(min(float(np.log10(b_hi + shift)), x0 + span))
+        shifts.append(shift)
         targets.append((kind, idx))
 
     for name in dofs:
@@ -193,7 +200,7 @@ def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequenc
             add("tendon_stiffness", name, t, float(model.tendon_stiffness[t]))
     for name in muscles:
         add("muscle_scale", name, model.actuator(name).id, 1.0)
-    return ParameterSpace(names, np.array(start), np.array(lo), np.array(hi), targets)
+    return ParameterSpace(names, np.array(start), np.array(lo), np.array(hi), targets, np.array(shifts), span)
 
 
 class TrajectoryObjective:
@@ -257,11 +264,13 @@ class FitResult:
     """The outcome of :func:`fit_cma`.
 
     Attributes:
-        names: parameter names; x: best log10 values, shape (n,); x0: start values.
-        cost, cost0: best and starting objective values.
-        history: best cost after each generation, shape (generations,).
+        names: parameter names; x: the chosen log10 values, shape (n,); x0: start values.
+        cost, cost0: training objective of ``x`` and of the start.
+        history: best training cost after each generation, shape (generations,).
         evaluations: objective evaluations (candidates); wall_time: seconds, summed over resumes.
         settings: everything that produced the fit (seed, sigma, popsize, penalty, bounds, data).
+        validation_cost, validation_cost0: the validation objective of ``x`` and of the start
+            (NaN without validation sets).
     """
 
     names: list[str]
@@ -273,6 +282,8 @@ class FitResult:
     evaluations: int
     wall_time: float
     settings: dict
+    validation_cost: float = float("nan")
+    validation_cost0: float = float("nan")
 
     def values(self, space: ParameterSpace | None = None) -> dict[str, float]:
         """Physical values by name (``10**x`` unless ``space`` says how to map them)."""
@@ -283,20 +294,24 @@ class FitResult:
 
 def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.1, popsize: int | None = None,
             generations: int = 100, checkpoint: str | os.PathLike[str] | None = None, progress: bool = True,
-            settings: dict | None = None) -> FitResult:
+            settings: dict | None = None, validation: TrajectoryObjective | None = None) -> FitResult:
     """Minimise ``objective`` with CMA-ES over the unit box of its parameter space.
 
     Each generation's candidates are simulated together (:meth:`TrajectoryObjective.__call__`,
     one batched rollout). With ``checkpoint``, the optimiser is pickled there after every
     generation and a later call with the same file resumes from it. The best candidate ever
-    seen is returned; it is never worse than the start (which is evaluated first).
+    seen is returned; it is never worse than the start (which is evaluated first). With
+    ``validation`` (the same objective on held-out trajectories), every new best candidate is also
+    scored there, and the one with the lowest validation cost is returned instead (the start
+    included): early stopping, so that a fit of a few hard training sets cannot make the model
+    worse elsewhere.
     """
     import cma
     from tqdm.auto import tqdm
 
     space = objective.space
     settings = dict(settings or {}, seed=seed, sigma0=sigma0, penalty=objective.penalty,
-                    bounds={k: list(v) for k, v in BOUNDS.items()})
+                    bounds={k: list(v) for k, v in BOUNDS.items()}, span=space.span)
     ckpt = Path(checkpoint) if checkpoint else None
     state = None
     if ckpt is not None and ckpt.exists():
@@ -311,8 +326,13 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
         if popsize:
             opts["popsize"] = popsize
         es = cma.CMAEvolutionStrategy(space.to_unit(space.x0), sigma0, opts)
+        val0 = float(validation(space.x0[None])[0]) if validation is not None else float("nan")
         state = {"names": space.names, "seed": seed, "es": es, "best_x": space.x0.copy(), "best": cost0,
-                 "cost0": cost0, "history": [], "wall": 0.0, "evals": 1}
+                 "cost0": cost0, "history": [], "wall": 0.0, "evals": 1,
+                 "val0": val0, "val_best": val0, "val_x": space.x0.copy(), "val_train_cost": cost0}
+    if validation is not None and "val_best" not in state:  # a checkpoint written without validation
+        val0 = float(validation(space.x0[None])[0])
+        state.update(val0=val0, val_best=val0, val_x=space.x0.copy(), val_train_cost=state["cost0"])
     es = state["es"]
     bar = tqdm(total=generations, initial=len(state["history"]), desc="CMA-ES", unit="gen", disable=not progress)
     while len(state["history"]) < generations:
@@ -324,6 +344,10 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
         k = int(np.argmin(costs))
         if costs[k] < state["best"]:
             state["best"], state["best_x"] = float(costs[k]), xs[k].copy()
+            if validation is not None:
+                v = float(validation(xs[k][None])[0])
+                if v < state["val_best"]:
+                    state["val_best"], state["val_x"], state["val_train_cost"] = v, xs[k].copy(), float(costs[k])
         state["history"].append(state["best"])
         state["wall"] += time.perf_counter() - t_start
         t_start = time.perf_counter()
@@ -332,13 +356,19 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
             with open(tmp, "wb") as f:
                 pickle.dump(state, f)
             os.replace(tmp, ckpt)
-        bar.set_postfix(best=f"{state['best']:.4g}", start=f"{state['cost0']:.4g}")
+        bar.set_postfix(best=f"{state['best']:.4g}", start=f"{state['cost0']:.4g}",
+                        **({"validation": f"{state['val_best']:.4g}"} if validation is not None else {}))
         bar.update()
     bar.close()
     state["wall"] += time.perf_counter() - t_start
-    return FitResult(space.names, state["best_x"], space.x0.copy(), state["best"], state["cost0"],
-                     np.array(state["history"]), state["evals"], state["wall"],
-                     dict(settings, generations=generations, popsize=es.popsize))
+    if validation is not None:
+        x, cost = state["val_x"], state["val_train_cost"]
+    else:
+        x, cost = state["best_x"], state["best"]
+    return FitResult(space.names, x, space.x0.copy(), cost, state["cost0"], np.array(state["history"]),
+                     state["evals"], state["wall"], dict(settings, generations=generations, popsize=es.popsize,
+                                                         best_training_cost=state["best"]),
+                     state.get("val_best", float("nan")), state.get("val0", float("nan")))
 
 
 def save_fit(path: str | os.PathLike[str], result: FitResult, space: ParameterSpace | None = None) -> Path:
@@ -349,7 +379,8 @@ def save_fit(path: str | os.PathLike[str], result: FitResult, space: ParameterSp
     doc = {"names": result.names, "x": result.x.tolist(), "x0": result.x0.tolist(),
            "values": result.values(space) if space is not None else None,
            "cost": result.cost, "cost0": result.cost0, "history": result.history.tolist(),
-           "evaluations": result.evaluations, "wall_time_s": result.wall_time, "settings": result.settings}
+           "evaluations": result.evaluations, "wall_time_s": result.wall_time, "settings": result.settings,
+           "validation_cost": result.validation_cost, "validation_cost0": result.validation_cost0}
     path.write_text(json.dumps(doc, indent=1) + "\n")
     return path
 
@@ -358,4 +389,5 @@ def load_fit(path: str | os.PathLike[str]) -> FitResult:
     """Read a fit written by :func:`save_fit`."""
     d = json.loads(Path(path).read_text())
     return FitResult(d["names"], np.array(d["x"]), np.array(d["x0"]), d["cost"], d["cost0"], np.array(d["history"]),
-                     d["evaluations"], d["wall_time_s"], d["settings"])
+                     d["evaluations"], d["wall_time_s"], d["settings"], d.get("validation_cost", float("nan")),
+                     d.get("validation_cost0", float("nan")))

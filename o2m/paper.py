@@ -55,9 +55,9 @@ class Settings:
 
 
 #: The budget of the stored result: the muscle force fit on every other sample of the training
-#: sets; 30 generations of 12 candidates, each simulated on all training sets; corrections with 6
-#: generations per spline block.
-FULL = Settings(generations=30, popsize=12, train_sets=None, test_sets=None, correction_generations=6)
+#: sets; 40 generations of 12 candidates, each simulated on all training sets (early-stopped on the
+#: validation sets); corrections with 6 generations per spline block.
+FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=6)
 QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2, force_stride=10,
                  force_nfev=60)
 
@@ -144,6 +144,9 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     space = parameter_space(force_model, exp.dofs, exp.muscles)
     objective = TrajectoryObjective(force_model, space, exp.init[train], exp.controls[train], exp.reference[train],
                                     exp.dofs)
+    held = [i for i in exp.dataset.validation if exp.dataset.ok[i]]
+    validation = TrajectoryObjective(force_model, space, exp.init[held], exp.controls[held], exp.reference[held],
+                                     exp.dofs) if held else None
     fit_file = out / "parameters.json"
     t0 = time.perf_counter()
     if fit_file.exists() and not refit:
@@ -152,8 +155,9 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
             raise ValueError(f"{fit_file} has other parameters than this model; rerun with refit=True")
     else:
         fit = fit_cma(objective, seed=settings.seed, generations=settings.generations, popsize=settings.popsize,
-                      checkpoint=out / "checkpoint.pkl", progress=progress,
-                      settings={"train_sets": train, "data": str(data_dir), "xml": exp.xml.name})
+                      checkpoint=out / "checkpoint.pkl", progress=progress, validation=validation,
+                      settings={"train_sets": train, "validation_sets": held, "data": str(data_dir),
+                                "xml": exp.xml.name})
         save_fit(fit_file, fit, space)
     fit_seconds = time.perf_counter() - t0
     fitted = space.apply(force_model, fit.x)
@@ -189,7 +193,9 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         "mean_abs_correction": float(np.mean(corr_size)),
         "muscle_forces": forces.summary(),
         "fit": {"cost0": fit.cost0, "cost": fit.cost, "evaluations": fit.evaluations, "wall_time_s": fit.wall_time,
-                "generations": len(fit.history)},
+                "generations": len(fit.history), "validation_cost0": fit.validation_cost0,
+                "validation_cost": fit.validation_cost,
+                "best_training_cost": fit.settings.get("best_training_cost", fit.cost)},
         "seconds": {"muscle_forces": force_seconds, "fit": fit_seconds, "corrections": corr_seconds},
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")

@@ -84,6 +84,20 @@ def test_fit_recovers_a_known_damping(tmp_path):
     assert np.array_equal(saved.x, more.x) and saved.names == more.names
 
 
+def test_validation_stops_a_fit_that_only_helps_the_training_sets(tmp_path):
+    """Training sets from a damping of 0.5, validation sets from the start's 0.05: the start is kept."""
+    model, init, ctrl, ref = _setup(0.5, 0.05)
+    _, v_init, v_ctrl, v_ref = _setup(0.05, 0.05, n=2)
+    space = parameter_space(model, ["swing"], [])
+    train = TrajectoryObjective(model, space, init, ctrl, ref, ["swing"], penalty=0.0)
+    held = TrajectoryObjective(model, space, v_init, v_ctrl, v_ref, ["swing"], penalty=0.0)
+    fit = fit_cma(train, seed=0, sigma0=0.2, generations=10, progress=False, validation=held)
+    assert fit.settings["best_training_cost"] < 0.1 * fit.cost0  # training alone would move far
+    assert fit.validation_cost == fit.validation_cost0 < 1e-20 and np.array_equal(fit.x, space.x0)
+    saved = load_fit(save_fit(tmp_path / "fit.json", fit))
+    assert saved.validation_cost == fit.validation_cost
+
+
 def test_bspline_basis_is_a_partition_of_unity_with_10_hz_knots():
     t = np.arange(500) * 0.002
     b = bspline_basis(t)
