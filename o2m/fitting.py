@@ -161,6 +161,62 @@ class ParameterSpace:
         return m
 
 
+    def write_mjcf(self, model: mujoco.MjModel, x: np.ndarray, xml_in: str | os.PathLike[str],
+                   xml_out: str | os.PathLike[str]) -> Path:
+        """Write ``xml_in`` (the MJCF of ``model``) with the parameters ``x`` to ``xml_out``, at full precision.
+
+        The written model equals :meth:`apply` of ``model`` in every field the parameters touch.
+        """
+        from lxml import etree
+
+        tree = etree.parse(str(xml_in))
+        root = tree.getroot()
+
+        def find(tag: str, name: str):
+            el = root.find(f".//{tag}[@name='{name}']")
+            if el is None:
+                raise KeyError(f"{xml_in}: no {tag} named {name!r}")
+            return el
+
+        def tendon(t: int):
+            name = model.tendon(t).name
+            return next(el for el in root.iterfind(".//tendon/*") if el.get("name") == name)
+
+        def num(v) -> str:
+            return " ".join(f"{float(a):.17g}" for a in np.atleast_1d(v))
+
+        def scaled(el, attr: str, factor: float, default: str) -> None:
+            el.set(attr, num(np.array((el.get(attr) or default).split(), float) * factor))
+
+        for (kind, idx), v in zip(self._targets, self.physical(x), strict=True):
+            if kind == "damping":
+                find("joint", model.joint(int(np.flatnonzero(model.jnt_dofadr == idx)[0])).name).set("damping", num(v))
+            elif kind == "limit_scale":
+                for t in idx:
+                    scaled(tendon(t), "stiffness", v, "0")
+            elif kind == "limit_timeconst":
+                find("joint", model.joint(idx).name).set("solreflimit", num([v, model.jnt_solref[idx, 1]]))
+            elif kind == "tendon_damping":
+                tendon(idx).set("damping", num(v))
+            elif kind == "tendon_stiffness":
+                tendon(idx).set("stiffness", num(v))
+            elif kind == "spring_scale":
+                scaled(tendon(idx), "stiffness", v, "0")
+            elif kind == "muscle_scale":
+                act = next(el for el in root.iterfind(".//actuator/*") if el.get("name") == model.actuator(idx).name)
+                if act.tag == "muscle":
+                    scaled(act, "force", v, "-1")
+                else:
+                    for attr in ("gainprm", "biasprm"):
+                        prm = np.array(act.get(attr).split(), float)
+                        prm[2] *= v
+                        act.set(attr, num(prm))
+        out = Path(xml_out)
+        tree.write(str(out), pretty_print=True)
+        mujoco.MjModel.from_xml_path(str(out))  # it must load
+        return out
+
+
 def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequence[str],
                     bounds: dict[str, tuple[float, float]] = BOUNDS, span: float = SPAN) -> ParameterSpace:
     """The paper's parameter vector for ``model``: 2 per free DoF, 2 per muscle tendon, 1 per muscle.

@@ -16,6 +16,8 @@ writes everything the figures need to ``<data>/results/``:
                       force-fitted, fitted and corrected model; per test set and muscle, mean absolute
                       correction; joint trajectories of the first test sets for the overlay
 ``summary.json``      the headline numbers and the settings (quick or full)
+
+and the fitted model itself as MJCF beside the converted one (``<model_dir>/<stem>_fitted.xml``).
 """
 
 from __future__ import annotations
@@ -161,6 +163,9 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         save_fit(fit_file, fit, space)
     fit_seconds = time.perf_counter() - t0
     fitted = space.apply(force_model, fit.x)
+    fitted_xml = exp.xml.with_name(exp.xml.stem + "_fitted.xml")  # beside the converted model: its meshes
+    forces.write_mjcf(exp.xml, fitted_xml)
+    space.write_mjcf(force_model, fit.x, fitted_xml, fitted_xml)
 
     err_converted, q_converted = joint_mae(exp, exp.model, test)
     err_forces, q_forces = joint_mae(exp, force_model, test)
@@ -192,6 +197,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         "diverged_test_sets": {k: int(np.isnan(v).any(axis=1).sum()) for k, v in stages.items() if k != "corrected"},
         "mean_abs_correction": float(np.mean(corr_size)),
         "muscle_forces": forces.summary(),
+        "fitted_xml": str(fitted_xml),
         "fit": {"cost0": fit.cost0, "cost": fit.cost, "evaluations": fit.evaluations, "wall_time_s": fit.wall_time,
                 "generations": len(fit.history), "validation_cost0": fit.validation_cost0,
                 "validation_cost": fit.validation_cost,

@@ -172,3 +172,17 @@ def test_force_matching_start_recovers_the_excitation_that_made_the_forces():
     coef = force_matching_start(model, reference, ["lifter"], lengths, velocities, forces)
     recovered = corrected_excitations(reference, bspline_basis(0.002 * np.arange(250)), coef)
     assert np.mean(np.abs(recovered - true_exc)) < 0.1 * np.mean(np.abs(reference - true_exc))
+
+
+def test_written_mjcf_is_the_applied_model(tmp_path):
+    src = tmp_path / "pendulum.xml"
+    src.write_text(PENDULUM.format(damping=0.1).replace('<spatial name="lifter">',
+                                                         '<spatial name="lifter" stiffness="5 20 100" springlength="0 0.5">'))
+    model = mujoco.MjModel.from_xml_path(str(src))
+    space = parameter_space(model, ["swing"], ["lifter"])
+    x = space.x0 + np.random.default_rng(0).uniform(-0.5, 0.5, len(space))
+    written = mujoco.MjModel.from_xml_path(str(space.write_mjcf(model, x, src, tmp_path / "fitted.xml")))
+    applied = space.apply(model, x)
+    for f in ("dof_damping", "jnt_solref", "tendon_damping", "tendon_stiffness", "tendon_stiffnesspoly",
+              "actuator_gainprm", "actuator_biasprm"):
+        np.testing.assert_allclose(getattr(written, f), getattr(applied, f), rtol=1e-12, err_msg=f)
