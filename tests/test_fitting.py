@@ -176,8 +176,8 @@ def test_force_matching_start_recovers_the_excitation_that_made_the_forces():
 
 def test_written_mjcf_is_the_applied_model(tmp_path):
     src = tmp_path / "pendulum.xml"
-    src.write_text(PENDULUM.format(damping=0.1).replace('<spatial name="lifter">',
-                                                         '<spatial name="lifter" stiffness="5 20 100" springlength="0 0.5">'))
+    spring = '<spatial name="lifter" stiffness="5 20 100" springlength="0 0.5">'
+    src.write_text(PENDULUM.format(damping=0.1).replace('<spatial name="lifter">', spring))
     model = mujoco.MjModel.from_xml_path(str(src))
     space = parameter_space(model, ["swing"], ["lifter"])
     x = space.x0 + np.random.default_rng(0).uniform(-0.5, 0.5, len(space))
