@@ -142,8 +142,10 @@ def cmd_paper(a: argparse.Namespace) -> int:
           f"force on held-out states ({mf['kept']} of {mf['muscles']} muscles changed)")
     print(f"Mean absolute correction: {summary['mean_abs_correction']:.4f}")
     f = summary["fit"]
-    print(f"CMA-ES: cost {f['cost0']:.4g} -> {f['cost']:.4g} in {f['generations']} generations, "
+    print(f"CMA-ES: training cost {f['cost0']:.4g} -> {f['cost']:.4g} (best seen {f['best_training_cost']:.4g}), "
+          f"validation cost {f['validation_cost0']:.4g} -> {f['validation_cost']:.4g}; {f['generations']} generations, "
           f"{f['evaluations']} candidates, {f['wall_time_s']:.0f} s")
+    print(f"Fitted model: {summary['fitted_xml']}")
     print(f"Speed: OpenSim {speed['opensim_median_s']:.2f} s, MuJoCo {speed['mujoco_median_s']:.4f} s per 1-s "
           f"simulation: {speed['ratio']:.0f}x; batched rollouts {speed['rollout_per_s']:.0f} simulations/s")
     print(f"{len(written)} figure files in {figures}")
