@@ -25,7 +25,7 @@ from .errors import O2MError
 from .mjcf import Approximation, JointRecord, MjcfBuilder, add_geometry
 from .paths import MUSCLE_TYPES, read_paths, read_wrap_objects
 from .skeleton import SkeletonReader, Skipped, read_skeleton
-from .tendons import add_paths, tendon_length_ranges
+from .tendons import add_paths, restore_geom_precision, tendon_length_ranges
 
 MESH_FOLDER = "meshes"
 
@@ -45,6 +45,10 @@ class ConversionReport:
     skipped: list[Skipped] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: One :class:`o2m.wrapfit.PathFit` (as a dict) per tendon whose wrap geoms were fitted.
+    path_fits: list[dict] = field(default_factory=list)
+    #: Seconds spent fitting wrap geoms (part of ``seconds``).
+    path_fit_seconds: float = 0.0
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -77,6 +81,14 @@ class ConversionReport:
         for reason, items in by_reason.items():
             shown = ", ".join(items[:8]) + (f", ... ({len(items)} in all)" if len(items) > 8 else "")
             lines.append(f"  {reason}: {shown}")
+        if self.path_fits:
+            from .wrapfit import PathFit, format_fits
+
+            fits = [PathFit(**f) for f in self.path_fits]
+            lines.append("")
+            lines.append(f"Wrap fits ({len(fits)} tendons, {sum(f.accepted for f in fits)} improved, "
+                         f"{self.path_fit_seconds:.1f} s; OpenSim -dL/dq over {fits[0].poses} poses):")
+            lines.extend(format_fits(fits))
         if self.warnings:
             lines.append("")
             lines.append("Warnings:")
@@ -97,11 +109,15 @@ class Conversion:
 
 
 def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | Path] | None = None,
-            name: str | None = None, fit_mechanics: bool = True) -> Conversion:
+            name: str | None = None, fit_mechanics: bool = True, fit_wraps: bool = True,
+            workers: int | None = None) -> Conversion:
     """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
 
     ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
-    its ``Geometry/`` subfolder, as OpenSim searches. ``fit_mechanics`` fits each muscle
+    its ``Geometry/`` subfolder, as OpenSim searches. ``fit_wraps`` fits the wrap geoms and side
+    sites of every path with wrapping or conditional points to OpenSim's lengths and moment arms
+    (:func:`o2m.wrapfit.fit_paths`, ``workers`` processes; quick sizes when ``O2M_QUICK`` is set).
+    ``fit_mechanics`` fits each muscle
     actuator's force-length parameters to OpenSim's forces (:func:`o2m.muscles.fit_muscles`);
     without it muscles get MuJoCo's defaults. Raises an :class:`~o2m.errors.O2MError`
     subclass for bad input; nothing is written then.
@@ -116,7 +132,7 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     result = builder.build()
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
-    add_paths(builder, paths, read_wrap_objects(reader))
+    tendons = add_paths(builder, paths, read_wrap_objects(reader))
     force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
     muscle_skipped = _fit_mechanics(result, osim) if fit_mechanics and any(
         p.owner_type in MUSCLE_TYPES for p in paths) else []
@@ -132,12 +148,23 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
             model = spec.compile()
         except Exception as exc:
             raise O2MError(f"{osim}: MuJoCo could not compile the converted model: {exc}") from exc
+        fits, fit_seconds = [], 0.0
+        if fit_wraps and tendons.path_geoms:
+            from .wrapfit import apply_fits, fit_paths
+
+            t_fit = time.perf_counter()
+            xml0 = restore_geom_precision(builder.restore_precision(spec.to_xml()), tendons.exact)
+            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=workers)
+            apply_fits(spec, fits, builder.exact, tendons.exact)
+            model = spec.compile()
+            fit_seconds = time.perf_counter() - t_fit
         _set_length_ranges(spec, model, builder)
         forces.fit_ligaments(force_conv, spec, model, builder)
         spec.add_key(name="default-pose", qpos=model.qpos0.copy())
         spec.compile()
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
+        xml_text = restore_geom_precision(xml_text, tendons.exact)
         xml_path.write_text(_default_pose(xml_text, model.qpos0))
         try:  # the written file, as a user will load it
             written = mujoco.MjModel.from_xml_path(str(xml_path))
@@ -154,7 +181,8 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
                     "geoms": model.ngeom, "other forces": force_conv.converted},
             joints=result.joints, approximations=result.approximations,
             skipped=[s for s in skel.skipped if (s.element, s.name) not in force_conv.handled]
-            + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings)
+            + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings,
+            path_fits=[f.to_dict() for f in fits], path_fit_seconds=fit_seconds)
         report.write(stage, stem)
         _publish(stage, out_dir, stem)
     return Conversion(out_dir / f"{stem}.xml", report)

@@ -1,0 +1,382 @@
+"""Fitting each tendon's wrap geoms and side sites to OpenSim's lengths and moment arms.
+
+Where a converted path only approximates OpenSim's (an ellipsoid wrapped as a sphere or a
+cylinder, a conditional point made a small wrap sphere, MuJoCo's side-site rule for which way
+round a geom the tendon goes), :func:`fit_paths` adjusts, per tendon, the position and radius of
+each of its wrap geoms and the position of each side site so that MuJoCo's tendon length and
+moment arms match OpenSim's over sampled poses:
+
+* Poses: every independent coordinate drawn uniformly in its range (seeded); OpenSim assembles
+  each pose and MuJoCo takes its independent values, equality-driven joints resolved.
+* Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
+  OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
+  them), for every coordinate the path spans.
+* Objective: mean squared length error plus mean squared moment-arm error, both in mm².
+  MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a reduced copy of the model
+  (that tendon only, no meshes) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are changed in
+  place; moment arms from the tendon Jacobian projected on each coordinate's direction.
+* Optimiser: CMA-ES (:mod:`cma`), seeded per tendon, parallel over tendons in a process pool.
+* A fit is accepted only when it lowers the objective both on the fitting poses and on separate
+  check poses; otherwise the tendon keeps its start. Each tendon's errors before and after go
+  into the conversion report.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+#: Poses to fit on and to check on, and the CMA-ES evaluation budget per tendon (full, quick).
+FULL = {"poses": 120, "check": 60, "evals": 1500}
+QUICK = {"poses": 40, "check": 30, "evals": 400}
+#: Central-difference step of OpenSim's moment arms (radians or metres).
+OS_FD_STEP = 1e-5
+#: Length scale (m) of the position parameters of a geom: at least this, else its radius.
+MIN_SCALE = 0.004
+#: A side site is kept at least this many radii from its geom's centre (axis, for a cylinder).
+MIN_SIDE_DISTANCE = 1.25
+
+
+def quick_mode() -> bool:
+    """True when ``O2M_QUICK`` is set to something other than 0/empty (as in CI)."""
+    return os.environ.get("O2M_QUICK", "") not in ("", "0")
+
+
+@dataclass
+class PathFit:
+    """The fit of one tendon: errors before and after (``len_rms_mm``, ``len_max_mm``,
+    ``len_max_pct``, ``ma_rms_mm``, ``objective``) on the fitting poses and on the check poses,
+    whether the result was accepted, and the fitted values (MuJoCo body frames, metres)."""
+
+    tendon: str
+    geoms: list[str]
+    kinds: list[str]
+    coordinates: list[str]
+    n_params: int
+    poses: int
+    before: dict[str, float]
+    after: dict[str, float]
+    check_before: dict[str, float]
+    check_after: dict[str, float]
+    accepted: bool
+    evaluations: int
+    seconds: float
+    values: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class _Task:
+    tendon: str
+    xml: str
+    geoms: list[str]
+    sites: list[str]
+    kinds: list[str]
+    qpos: np.ndarray  # (N, nq) fitting poses, then check poses
+    dv: np.ndarray  # (N, nc, nv) coordinate directions in dof space
+    length: np.ndarray  # (N,) OpenSim
+    arm: np.ndarray  # (N, nc) OpenSim -dL/dq
+    n_fit: int
+    coordinates: list[str]
+    seed: int
+    evals: int
+
+
+# --------------------------------------------------------------------------------------------
+# MuJoCo side (runs in the workers)
+# --------------------------------------------------------------------------------------------
+
+
+def reduced_xml(xml: str, tendon: str | None = None) -> str:
+    """MJCF text of ``xml`` without meshes, actuators, sensors or keyframes, and with only
+    ``tendon`` (every tendon when None): what tendon lengths depend on, cheap to evaluate."""
+    root = etree.fromstring(xml.encode())
+    for asset in root.iter("asset"):
+        for el in list(asset):
+            if el.tag in ("mesh", "hfield", "skin"):
+                asset.remove(el)
+    for g in list(root.iter("geom")):
+        if g.get("mesh") is not None or g.get("type") in ("mesh", "hfield", "sdf"):
+            g.getparent().remove(g)
+    for tag in ("actuator", "sensor", "keyframe", "contact", "custom"):
+        for el in list(root.iter(tag)):
+            el.getparent().remove(el)
+    for ten in list(root.iter("tendon")):
+        for el in list(ten):
+            if tendon is not None and el.get("name") != tendon:
+                ten.remove(el)
+    for eq in list(root.iter("equality")):
+        for el in list(eq):
+            if el.tag == "tendon":
+                eq.remove(el)
+    return etree.tostring(root, encoding="unicode")
+
+
+class _Evaluator:
+    """A reduced MuJoCo model of one tendon and the poses it is evaluated in."""
+
+    def __init__(self, task: _Task):
+        self.t = task
+        self.m = mujoco.MjModel.from_xml_string(task.xml)
+        self.d = mujoco.MjData(self.m)
+        self.gid = [self.m.geom(g).id for g in task.geoms]
+        self.sid = [self.m.site(s).id for s in task.sites]
+        self.pos0 = self.m.geom_pos[self.gid].copy()
+        self.rad0 = self.m.geom_size[self.gid, 0].copy()
+        self.side0 = self.m.site_pos[self.sid].copy()
+        self.cyl = [int(self.m.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_CYLINDER) for g in self.gid]
+        self.scale = np.maximum(self.rad0, MIN_SCALE)
+        self.n_params = 7 * len(self.gid)
+        self.evaluations = 0
+
+    def values(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Geom positions, radii and side-site positions (body frames) of parameters ``theta``."""
+        th = np.asarray(theta, dtype=float).reshape(len(self.gid), 7)
+        pos = self.pos0 + self.scale[:, None] * th[:, 0:3]
+        rad = self.rad0 * np.exp(np.clip(th[:, 3], -3.0, 3.0))
+        side = self.side0 + self.scale[:, None] * th[:, 4:7]
+        for k, g in enumerate(self.gid):  # keep each side site outside its geom (its axis, for a cylinder)
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, self.m.geom_quat[g])
+            rot = rot.reshape(3, 3)
+            rel = rot.T @ (side[k] - pos[k])
+            mask = np.array([1.0, 1.0, 0.0]) if self.cyl[k] else np.ones(3)
+            radial, axial = rel * mask, rel * (1.0 - mask)
+            dist, need = float(np.linalg.norm(radial)), MIN_SIDE_DISTANCE * rad[k]
+            if dist < need:
+                radial = radial / dist * need if dist > 1e-12 else np.array([need, 0.0, 0.0])
+                side[k] = pos[k] + rot @ (radial + axial)
+        return pos, rad, side
+
+    def apply(self, theta: np.ndarray) -> None:
+        pos, rad, side = self.values(theta)
+        self.m.geom_pos[self.gid] = pos
+        self.m.geom_size[self.gid, 0] = rad
+        self.m.site_pos[self.sid] = side
+
+    def errors(self, theta: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray]:
+        """Length errors (n,) and moment-arm errors (n, nc), metres, MuJoCo minus OpenSim."""
+        self.apply(theta)
+        m, d, t = self.m, self.d, self.t
+        qs = t.qpos[rows]
+        n = len(qs)
+        length = np.empty(n)
+        arm = np.empty((n, t.dv.shape[1]))
+        dv = t.dv[rows]
+        for k in range(n):
+            d.qpos[:] = qs[k]
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_tendon(m, d)
+            length[k] = d.ten_length[0]
+            jac = np.zeros(m.nv)
+            adr, nnz = int(m.ten_J_rowadr[0]), int(m.ten_J_rownnz[0])
+            jac[m.ten_J_colind[adr:adr + nnz]] = d.ten_J[adr:adr + nnz]
+            arm[k] = -(dv[k] @ jac)
+        self.evaluations += 1
+        return length - t.length[rows], arm - t.arm[rows]
+
+    def objective(self, theta: np.ndarray, rows: slice) -> float:
+        le, me = self.errors(theta, rows)
+        return float(np.mean(le**2) * 1e6 + (np.mean(me**2) * 1e6 if me.size else 0.0))
+
+    def summary(self, theta: np.ndarray, rows: slice) -> dict[str, float]:
+        le, me = self.errors(theta, rows)
+        L = self.t.length[rows]
+        return {"len_rms_mm": float(np.sqrt(np.mean(le**2)) * 1e3), "len_max_mm": float(np.max(np.abs(le)) * 1e3),
+                "len_max_pct": float(np.max(np.abs(le) / np.maximum(L, 1e-9)) * 100),
+                "ma_rms_mm": float(np.sqrt(np.mean(me**2)) * 1e3) if me.size else 0.0,
+                "objective": float(np.mean(le**2) * 1e6 + (np.mean(me**2) * 1e6 if me.size else 0.0))}
+
+
+def _fit_one(task: _Task) -> PathFit:
+    import cma
+
+    t0 = time.perf_counter()
+    ev = _Evaluator(task)
+    fit, check = slice(0, task.n_fit), slice(task.n_fit, len(task.qpos))
+    x0 = np.zeros(ev.n_params)
+    f0 = ev.objective(x0, fit)
+    best_x, best_f = x0, f0
+    if ev.n_params and task.evals > 0:
+        es = cma.CMAEvolutionStrategy(x0, 0.3, {"seed": int(task.seed) + 1, "maxfevals": int(task.evals),
+                                                "verbose": -9, "bounds": [-4.0, 4.0], "tolfun": 1e-9})
+        while not es.stop():
+            xs = es.ask()
+            fs = [ev.objective(x, fit) for x in xs]
+            es.tell(xs, fs)
+            k = int(np.argmin(fs))
+            if fs[k] < best_f:
+                best_x, best_f = np.array(xs[k]), float(fs[k])
+    before, after = ev.summary(x0, fit), ev.summary(best_x, fit)
+    cb, ca = ev.summary(x0, check), ev.summary(best_x, check)
+    accepted = bool(after["objective"] < before["objective"] and ca["objective"] <= cb["objective"])
+    if not accepted:
+        best_x, after, ca = x0, before, cb
+    pos, rad, side = ev.values(best_x)
+    values = {g: {"pos": pos[k].tolist(), "radius": [float(rad[k])]} for k, g in enumerate(task.geoms)}
+    values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites)})
+    return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
+                   before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values)
+
+
+# --------------------------------------------------------------------------------------------
+# OpenSim side and the driver
+# --------------------------------------------------------------------------------------------
+
+
+def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int
+             ) -> tuple[Any, dict[str, dict[str, Any]]]:
+    """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms."""
+    from .validate import _sample_bounds, joint_qpos_address, resolve_joint_equalities
+    from .validate_muscles import _coordinate_direction, _Pair, _qpos_to_dof
+
+    pair = _Pair(osim_path, xml_path)
+    m = pair.mj_model
+    names = [n for n, _, _ in pair.matched]
+    col = {n: i for i, n in enumerate(names)}
+    spans = pair.spanned()
+    wanted = [t for t in tendons if t in col]
+    coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
+                    key=pair.indep_names.index)
+    rng = np.random.default_rng(seed)
+    bounds = np.array([_sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
+    qpos, lengths, arms = [], [], []
+    attempts = 0
+    while len(qpos) < n_poses and attempts < 4 * n_poses:
+        attempts += 1
+        values = dict(zip(pair.indep_names, rng.uniform(bounds[:, 0], bounds[:, 1]), strict=True))
+        try:
+            state = pair.os_state(values)
+            values = pair.os_indep_values(state)
+            base = pair.os_lengths(state)
+            arm = np.zeros((len(names), len(coords)))
+            asm = bool(pair.dependent)
+            for j, c in enumerate(coords):
+                up = pair.os_lengths(pair.os_state({**values, c: values[c] + OS_FD_STEP}, assemble=asm))
+                dn = pair.os_lengths(pair.os_state({**values, c: values[c] - OS_FD_STEP}, assemble=asm))
+                arm[:, j] = -(up - dn) / (2 * OS_FD_STEP)
+        except Exception:  # assembly failure: draw another pose
+            continue
+        q = np.array(m.qpos0, dtype=float)
+        for n, v in values.items():
+            q[joint_qpos_address(m, n)] = v
+        resolve_joint_equalities(m, q, pair.plan)
+        qpos.append(q)
+        lengths.append(base)
+        arms.append(arm)
+    qpos_a, len_a, arm_a = np.array(qpos), np.array(lengths), np.array(arms)
+    dv_all = np.array([[_qpos_to_dof(m, _coordinate_direction(m, q, joint_qpos_address(m, c), pair.plan))
+                        for c in coords] for q in qpos_a]).reshape(len(qpos_a), len(coords), m.nv)
+    out = {}
+    for t in wanted:
+        cs = [j for j, c in enumerate(coords) if c in spans.get(t, set())]
+        out[t] = {"qpos": qpos_a, "dv": dv_all[:, cs, :], "length": len_a[:, col[t]], "arm": arm_a[:, col[t]][:, cs],
+                  "coordinates": [coords[j] for j in cs]}
+    return m, out
+
+
+def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any], *, seed: int = 0,
+              quick: bool | None = None, workers: int | None = None, progress: bool = False,
+              n_poses: int | None = None, evals: int | None = None) -> list[PathFit]:
+    """Fit the wrap geoms and side sites of every tendon in ``path_geoms`` (each a
+    :class:`o2m.tendons.PathGeom`) of the model ``xml`` (MJCF text) to OpenSim ``osim_path``.
+
+    ``quick`` (default: :func:`quick_mode`) uses :data:`QUICK` sizes instead of :data:`FULL`;
+    ``n_poses``/``evals`` override them. ``workers`` processes (default: every core) fit the
+    tendons in parallel. Returns one :class:`PathFit` per tendon, in ``path_geoms`` order.
+    """
+    from tqdm.auto import tqdm
+
+    sizes = QUICK if (quick_mode() if quick is None else quick) else FULL
+    n_fit = int(n_poses or sizes["poses"])
+    n_check = max(10, n_fit // 2) if n_poses else sizes["check"]
+    budget = int(sizes["evals"] if evals is None else evals)
+    by_tendon: dict[str, list[Any]] = {}
+    for g in path_geoms:
+        by_tendon.setdefault(g.tendon, []).append(g)
+    if not by_tendon:
+        return []
+    with tempfile.TemporaryDirectory(prefix="o2m-wrapfit-") as tmp:
+        path = os.path.join(tmp, "model.xml")
+        with open(path, "w") as fh:
+            fh.write(reduced_xml(xml))
+        _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed)
+    tasks = []
+    for k, (tendon, geoms) in enumerate(by_tendon.items()):
+        tg = targets.get(tendon)
+        if tg is None or len(tg["qpos"]) < 2:
+            continue
+        tasks.append(_Task(tendon, reduced_xml(xml, tendon), [g.geom for g in geoms], [g.sidesite for g in geoms],
+                           [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
+                           min(n_fit, len(tg["qpos"]) - 1), tg["coordinates"], seed * 1000 + k, budget))
+    workers = max(1, min(workers or os.cpu_count() or 1, len(tasks)))
+    bar = tqdm(total=len(tasks), disable=not progress, desc="wrap fit")
+    results: dict[str, PathFit] = {}
+    if workers == 1:
+        for task in tasks:
+            results[task.tendon] = _fit_one(task)
+            bar.update()
+    else:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=_context()) as pool:
+            for task, res in zip(tasks, pool.map(_fit_one, tasks), strict=True):
+                results[task.tendon] = res
+                bar.update()
+    bar.close()
+    return [results[t] for t in by_tendon if t in results]
+
+
+def _context() -> Any:
+    """fork where there is one (the workers use only MuJoCo, NumPy and cma; no ``__main__``
+    guard needed in the caller's script), else spawn, as :mod:`o2m.muscles` does."""
+    import multiprocessing
+
+    return multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
+
+
+def apply_fits(spec: mujoco.MjSpec, fits: Sequence[PathFit], site_exact: dict, geom_exact: dict) -> None:
+    """Write accepted fits into ``spec`` and into the exact-value tables the MJCF writer uses."""
+    for f in fits:
+        if not f.accepted:
+            continue
+        for name, vals in f.values.items():
+            if name in f.geoms:
+                g = spec.geom(name)
+                pos, radius = np.array(vals["pos"]), float(vals["radius"][0])
+                g.pos = pos
+                size = np.array(g.size, dtype=float)
+                size[0] = radius
+                g.size = size
+                ex = geom_exact.setdefault(("geom", name), {})
+                ex["pos"] = pos
+                ex["size"] = np.concatenate([[radius], np.asarray(ex.get("size", [radius]))[1:]])
+            else:
+                s = spec.site(name)
+                s.pos = np.array(vals["pos"])
+                site_exact[("site", name)] = {"pos": np.array(vals["pos"])}
+
+
+def format_fits(fits: Sequence[PathFit]) -> list[str]:
+    """Report lines, one per fitted tendon."""
+    lines = []
+    for f in fits:
+        b, a = f.before, f.after
+        lines.append(f"  {f.tendon:16s} {'+'.join(sorted(set(f.kinds))):34s} length rms {b['len_rms_mm']:.3g} -> "
+                     f"{a['len_rms_mm']:.3g} mm (max {b['len_max_pct']:.3g} -> {a['len_max_pct']:.3g} %), moment arm "
+                     f"rms {b['ma_rms_mm']:.3g} -> {a['ma_rms_mm']:.3g} mm"
+                     + ("" if f.accepted else " (not better: start kept)") + f", {f.seconds:.1f} s")
+    return lines
+
+
+__all__ = ["FULL", "QUICK", "PathFit", "apply_fits", "fit_paths", "format_fits", "quick_mode", "reduced_xml"]
