@@ -310,10 +310,13 @@ class TendonBuilder:
         return name
 
     def place_wraps(self, path: Path, sites_ground: np.ndarray) -> list[tuple[int, WrapObject]]:
-        """Choose, for each wrap of ``path``, the segment it acts on (closest at the reference pose)."""
-        chosen: dict[int, tuple[float, WrapObject]] = {}
+        """Choose, for each wrap of ``path``, the segment (within the wrap's OpenSim range) it acts
+        on at the reference pose. MuJoCo wraps one geom per segment, so wraps are assigned closest
+        first: a wrap whose closest segment is taken goes to its next closest free one when that
+        passes within two of its sizes of it, and is left out (noted) otherwise."""
         n = len(path.points)
-        for pw in path.wraps:
+        candidates = []  # (distance, wrap order, segment, wrap, size)
+        for order, pw in enumerate(path.wraps):
             wrap = self.wraps.get(pw.wrap)
             if wrap is None:
                 raise self.b.doc.error(path.element, f"wraps over '{pw.wrap}', which no body defines")
@@ -323,22 +326,26 @@ class TendonBuilder:
             first = 0 if lo < 1 else lo - 1
             last = n - 2 if hi < 1 else min(hi - 1, n - 1) - 1
             centre = (self.b.ground_frames[wrap.body] @ wrap.frame).pos
-            best = None
+            size = max(wrap.radius, float(np.max(wrap.dimensions)), wrap.outer_radius)
             for seg in range(first, last + 1):
                 d = _segment_distance(sites_ground[seg], sites_ground[seg + 1], centre)
-                if best is None or d < best[0]:
-                    best = (d, seg)
-            if best is None:
+                candidates.append((d, order, seg, wrap, size))
+        candidates.sort(key=lambda c: (c[0], c[1]))
+        best = {}
+        for d, order, _, _, _ in candidates:
+            best.setdefault(order, d)
+        chosen: dict[int, WrapObject] = {}
+        placed: set[int] = set()
+        for d, order, seg, wrap, size in candidates:
+            if order in placed or seg in chosen or d > best[order] + 2.0 * size:
                 continue
-            d, seg = best
-            if seg in chosen:  # MuJoCo wraps one geom per segment: keep the closer one
-                keep, drop = (chosen[seg][1], wrap) if chosen[seg][0] <= d else (wrap, chosen[seg][1])
-                self.b.result.notes.append(f"{path.owner}: wrap object '{drop.name}' left out (MuJoCo wraps one "
-                                           f"object per path segment; '{keep.name}' kept)")
-                if keep is chosen[seg][1]:
-                    continue
-            chosen[seg] = (d, wrap)
-        return sorted(((seg, w) for seg, (_, w) in chosen.items()), key=lambda t: t[0])
+            chosen[seg] = wrap
+            placed.add(order)
+        for order, pw in enumerate(path.wraps):
+            if order in best and order not in placed:
+                self.b.result.notes.append(f"{path.owner}: wrap object '{pw.wrap}' left out (MuJoCo wraps one "
+                                           f"geom per path segment and the segments near it are taken)")
+        return sorted(chosen.items(), key=lambda t: t[0])
 
     def side_site(self, wrap: WrapObject, geom: str, a: np.ndarray, b: np.ndarray) -> str:
         """A side site for ``geom``, on the side the segment a-b (ground, reference pose) passes,

@@ -52,6 +52,7 @@ __all__ = [
     "moment_arm_curve",
     "mujoco_moment_arms",
     "mujoco_tendon_lengths",
+    "opensim_spikes",
     "plot_moment_arms",
     "sweep_jumps",
 ]
@@ -65,6 +66,10 @@ LEN_PCT = 1.0
 MA_MEDIAN_MM = 0.5
 MA_P95_MM = 2.0
 MA_MAX_MM = 5.0
+#: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
+SPIKE_STEP = 0.01
+SPIKE_LINEAR_STEP = 1e-3
+SPIKE_TOL = 1e-3
 
 _TRANSLATIONAL = 2  # opensim Coordinate::Translational
 
@@ -383,6 +388,39 @@ class _Pair:
         return np.linspace(lo, hi, n)
 
 
+def opensim_spikes(pair: _Pair, values: Mapping[str, float], muscles: Sequence[int],
+                   lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim length is an isolated spike at
+    the pose of independent ``values``: for some independent coordinate, moving it by
+    :data:`SPIKE_STEP` radians (:data:`SPIKE_LINEAR_STEP` m) either way gives two lengths that
+    agree with each other within :data:`SPIKE_TOL` while the length at the pose differs from
+    their mean by more than :data:`SPIKE_TOL`. A smooth path cannot do that (its second
+    difference over 0.01 rad is ~1e-5 m), nor can a conditional point's switch (a step, where
+    the two neighbours differ); it is OpenSim's wrapping taking a wrong way round in a narrow band
+    of poses (Arm26's BIClong round BIClonghh: 86 mm longer for shoulder elevation in 0.515-0.518
+    rad). Returns muscle index -> {"coordinate", "length", "neighbours"} (m)."""
+    out: dict[int, dict[str, Any]] = {}
+    if not len(muscles):
+        return out
+    idx = np.asarray(list(muscles), dtype=int)
+    base = pair.os_lengths(pair.os_state(values)) if lengths is None else np.asarray(lengths)
+    for c in pair.indep:
+        name = c.getName()
+        h = SPIKE_LINEAR_STEP if int(c.getMotionType()) == _TRANSLATIONAL else SPIKE_STEP
+        try:
+            up = pair.os_lengths(pair.os_state({**values, name: values[name] + h}))
+            dn = pair.os_lengths(pair.os_state({**values, name: values[name] - h}))
+        except Exception:
+            continue
+        for i in idx:
+            if int(i) in out:
+                continue
+            if abs(up[i] - dn[i]) < SPIKE_TOL and abs(base[i] - 0.5 * (up[i] + dn[i])) > SPIKE_TOL:
+                out[int(i)] = {"coordinate": name, "length": float(base[i]),
+                               "neighbours": [float(dn[i]), float(up[i])]}
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # Report
 # --------------------------------------------------------------------------------------------
@@ -454,6 +492,9 @@ class MuscleReport:
     locked_coordinates: list[str] = field(default_factory=list)
     worst_length: dict[str, Any] | None = None
     skipped_poses: int = 0
+    #: (muscle, pose) samples left out because OpenSim's own length spikes there
+    #: (:func:`opensim_spikes`): each {"muscle", "pose", "coordinate", "length", "neighbours"}.
+    opensim_spikes: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def name(self) -> str:
@@ -495,7 +536,9 @@ class MuscleReport:
         lines = [
             f"{self.name}: {len(self.muscles)} muscles, {self.n_poses} poses ({self.ma_poses} for moment arms), "
             f"{len(self.coordinates)} coordinates"
-            + (f", {self.skipped_poses} poses skipped (assembly failed)" if self.skipped_poses else ""),
+            + (f", {self.skipped_poses} poses skipped (assembly failed)" if self.skipped_poses else "")
+            + (f", {len(self.opensim_spikes)} (muscle, pose) samples left out where OpenSim's own length spikes"
+               if self.opensim_spikes else ""),
         ]
         w = max([len("muscle")] + [len(m) for m in self.muscles])
         lines.append(f"  {'muscle':<{w}}  {'max len mm':>10}  {'rms len mm':>10}  {'max len %':>9}  "
@@ -631,8 +674,11 @@ def compare_muscles(
     len_max = np.full(nm, -np.inf)
     worst: dict[str, Any] | None = None
     n_done = skipped = 0
+    n_valid = np.zeros(nm, dtype=int)
+    spikes: list[dict[str, Any]] = []
     ma_states: list[Any] = []
     ma_mj: list[np.ndarray] = []  # (nm, nc) per moment-arm pose
+    ma_valid: list[np.ndarray] = []  # (nm,) bool per moment-arm pose: not an OpenSim spike
     fd_vs_jac = 0.0
 
     desc = f"muscles {os.path.basename(pair.osim_path)}"
@@ -646,13 +692,21 @@ def compare_muscles(
         l_os = pair.os_lengths(state)
         l_mj = pair.mj_lengths(values)[tids]
         err = np.abs(l_mj - l_os)
+        valid = np.ones(nm, dtype=bool)
+        suspects = np.flatnonzero(err > SPIKE_TOL)
+        if suspects.size:  # only a sample whose error is over SPIKE_TOL can be an OpenSim spike
+            for i, info in opensim_spikes(pair, values, suspects, l_os).items():
+                valid[i] = False
+                spikes.append({"muscle": names[i], "pose": k, **info})
+        err = np.where(valid, err, 0.0)
+        n_valid += valid
         pct = 100.0 * err / np.maximum(np.abs(l_os), 1e-12)
         err_sq += err**2
         pct_sq += pct**2
         np.maximum(max_err, err, out=max_err)
         np.maximum(max_pct, pct, out=max_pct)
-        np.minimum(len_min, l_os, out=len_min)
-        np.maximum(len_max, l_os, out=len_max)
+        np.minimum(len_min, np.where(valid, l_os, np.inf), out=len_min)
+        np.maximum(len_max, np.where(valid, l_os, -np.inf), out=len_max)
         if nm:
             i = int(np.argmax(err))
             if worst is None or err[i] > worst["error"]:
@@ -665,6 +719,7 @@ def compare_muscles(
                 fd_vs_jac = max(fd_vs_jac, float(np.max(np.abs(fd - jac))))
             ma_mj.append(fd if ma_method == "fd" else jac)
             ma_states.append(state)
+            ma_valid.append(valid)
         n_done += 1
 
     # Moment arms: pairs OpenSim spans, or MuJoCo moves.
@@ -677,8 +732,11 @@ def compare_muscles(
         for j, cname in enumerate(pair.indep_names):
             if not ma_mj or not (cname in spans.get(name, set()) or mj_nonzero[i, j]):
                 continue
-            r_os = np.array([obj.computeMomentArm(st, coord_objs[j]) for st in ma_states], dtype=float)
-            r_mj = np.array([m[i, j] for m in ma_mj])
+            use = [k for k, v in enumerate(ma_valid) if v[i]]
+            if not use:
+                continue
+            r_os = np.array([obj.computeMomentArm(ma_states[k], coord_objs[j]) for k in use], dtype=float)
+            r_mj = np.array([ma_mj[k][i, j] for k in use])
             if np.max(np.abs(r_os)) <= MA_ZERO and np.max(np.abs(r_mj)) <= MA_ZERO:
                 continue
             d = r_mj - r_os
@@ -691,14 +749,14 @@ def compare_muscles(
             moment_arms[name][cname] = e
             rms_all.append(e.rms)
 
-    nd = max(n_done, 1)
+    nd = np.maximum(n_valid, 1)
     muscles = {
         n: MuscleError(
             kind=kind,
             max_len=float(max_err[i]),
-            rms_len=float(np.sqrt(err_sq[i] / nd)),
+            rms_len=float(np.sqrt(err_sq[i] / nd[i])),
             max_len_pct=float(max_pct[i]),
-            rms_len_pct=float(np.sqrt(pct_sq[i] / nd)),
+            rms_len_pct=float(np.sqrt(pct_sq[i] / nd[i])),
             length_range=(float(len_min[i]), float(len_max[i])),
             moment_arms=moment_arms[n],
         )
@@ -726,6 +784,7 @@ def compare_muscles(
         locked_coordinates=pair.locked,
         worst_length=worst,
         skipped_poses=skipped,
+        opensim_spikes=spikes,
     )
 
 

@@ -240,7 +240,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
              ) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms."""
     from .validate import _sample_bounds, joint_qpos_address, resolve_joint_equalities
-    from .validate_muscles import _coordinate_direction, _Pair, _qpos_to_dof
+    from .validate_muscles import SPIKE_TOL, _coordinate_direction, _Pair, _qpos_to_dof, opensim_spikes
 
     pair = _Pair(osim_path, xml_path)
     m = pair.mj_model
@@ -252,7 +252,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
                     key=pair.indep_names.index)
     rng = np.random.default_rng(seed)
     bounds = np.array([_sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
-    qpos, lengths, arms = [], [], []
+    qpos, lengths, arms, valid = [], [], [], []
+    wanted_idx = np.array([col[t] for t in wanted], dtype=int)
     attempts = 0
     while len(qpos) < n_poses and attempts < 4 * n_poses:
         attempts += 1
@@ -269,6 +270,13 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
                 arm[:, j] = -(up - dn) / (2 * OS_FD_STEP)
         except Exception:  # assembly failure: draw another pose
             continue
+        # OpenSim's own length spiking here (a wrap going the wrong way round) is no target
+        ok = np.ones(len(names), dtype=bool)
+        err = np.abs(pair.mj_lengths(values)[pair.tendon_ids] - base)
+        suspects = wanted_idx[err[wanted_idx] > SPIKE_TOL]
+        for i in opensim_spikes(pair, values, suspects, base):
+            ok[i] = False
+        valid.append(ok)
         q = np.array(m.qpos0, dtype=float)
         for n, v in values.items():
             q[joint_qpos_address(m, n)] = v
@@ -276,14 +284,16 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         qpos.append(q)
         lengths.append(base)
         arms.append(arm)
-    qpos_a, len_a, arm_a = np.array(qpos), np.array(lengths), np.array(arms)
+    qpos_a, len_a, arm_a, ok_a = np.array(qpos), np.array(lengths), np.array(arms), np.array(valid)
     dv_all = np.array([[_qpos_to_dof(m, _coordinate_direction(m, q, joint_qpos_address(m, c), pair.plan))
                         for c in coords] for q in qpos_a]).reshape(len(qpos_a), len(coords), m.nv)
     out = {}
     for t in wanted:
         cs = [j for j, c in enumerate(coords) if c in spans.get(t, set())]
-        out[t] = {"qpos": qpos_a, "dv": dv_all[:, cs, :], "length": len_a[:, col[t]], "arm": arm_a[:, col[t]][:, cs],
-                  "coordinates": [coords[j] for j in cs]}
+        rows = ok_a[:, col[t]]
+        out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": len_a[rows, col[t]],
+                  "arm": arm_a[rows, col[t]][:, cs], "coordinates": [coords[j] for j in cs],
+                  "spikes": int(np.sum(~rows))}
     return m, out
 
 
