@@ -40,6 +40,8 @@ FULL = {"poses": 120, "check": 60, "evals": 1500}
 QUICK = {"poses": 40, "check": 30, "evals": 400}
 #: Central-difference step of OpenSim's moment arms (radians or metres).
 OS_FD_STEP = 1e-5
+#: OpenSim moment arms by steps of 1 and 10 OS_FD_STEP that differ by more than this (m) are left out.
+MA_CONSISTENCY = 1e-3
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
 #: A side site is kept at least this many radii from its geom's centre (axis, for a cylinder).
@@ -189,15 +191,22 @@ class _Evaluator:
 
     def objective(self, theta: np.ndarray, rows: slice) -> float:
         le, me = self.errors(theta, rows)
-        return float(np.mean(le**2) * 1e6 + (np.mean(me**2) * 1e6 if me.size else 0.0))
+        return _objective(le, me)
 
     def summary(self, theta: np.ndarray, rows: slice) -> dict[str, float]:
         le, me = self.errors(theta, rows)
         L = self.t.length[rows]
+        ok = np.isfinite(me)
         return {"len_rms_mm": float(np.sqrt(np.mean(le**2)) * 1e3), "len_max_mm": float(np.max(np.abs(le)) * 1e3),
                 "len_max_pct": float(np.max(np.abs(le) / np.maximum(L, 1e-9)) * 100),
-                "ma_rms_mm": float(np.sqrt(np.mean(me**2)) * 1e3) if me.size else 0.0,
-                "objective": float(np.mean(le**2) * 1e6 + (np.mean(me**2) * 1e6 if me.size else 0.0))}
+                "ma_rms_mm": float(np.sqrt(np.mean(me[ok] ** 2)) * 1e3) if ok.any() else 0.0,
+                "objective": _objective(le, me)}
+
+
+def _objective(le: np.ndarray, me: np.ndarray) -> float:
+    """Mean squared length error plus mean squared moment-arm error (mm²); NaN targets left out."""
+    ok = np.isfinite(me)
+    return float(np.mean(le**2) * 1e6 + (np.mean(me[ok] ** 2) * 1e6 if ok.any() else 0.0))
 
 
 def _fit_one(task: _Task) -> PathFit:
@@ -265,9 +274,13 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
             arm = np.zeros((len(names), len(coords)))
             asm = bool(pair.dependent)
             for j, c in enumerate(coords):
-                up = pair.os_lengths(pair.os_state({**values, c: values[c] + OS_FD_STEP}, assemble=asm))
-                dn = pair.os_lengths(pair.os_state({**values, c: values[c] - OS_FD_STEP}, assemble=asm))
-                arm[:, j] = -(up - dn) / (2 * OS_FD_STEP)
+                ma = []
+                for h in (OS_FD_STEP, 10 * OS_FD_STEP):
+                    up = pair.os_lengths(pair.os_state({**values, c: values[c] + h}, assemble=asm))
+                    dn = pair.os_lengths(pair.os_state({**values, c: values[c] - h}, assemble=asm))
+                    ma.append(-(up - dn) / (2 * h))
+                # a length discontinuity within the step (a wrap flipping) is no moment arm
+                arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
         except Exception:  # assembly failure: draw another pose
             continue
         # OpenSim's own length spiking here (a wrap going the wrong way round) is no target
