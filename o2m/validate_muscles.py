@@ -436,6 +436,10 @@ class MomentArmError:
     max: float
     max_abs_opensim: float
     max_abs_mujoco: float
+    #: RMS of MuJoCo minus OpenSim's own -dL/dq (central differences, dependent coordinates
+    #: following their couplers), and RMS of OpenSim's computeMomentArm minus that -dL/dq.
+    rms_vs_dldq: float = 0.0
+    opensim_compute_vs_dldq: float = 0.0
 
 
 @dataclass
@@ -485,6 +489,10 @@ class MuscleReport:
     ma_p95: float
     ma_max: float
     ma_fd_vs_jacobian: float = 0.0
+    #: Median / 95th percentile / max of the per-pair RMS errors against OpenSim's own -dL/dq.
+    ma_dldq_median: float = 0.0
+    ma_dldq_p95: float = 0.0
+    ma_dldq_max: float = 0.0
     missing_tendons: list[str] = field(default_factory=list)
     extra_tendons: list[str] = field(default_factory=list)
     actuator_issues: dict[str, str] = field(default_factory=dict)
@@ -552,6 +560,8 @@ class MuscleReport:
         lines.append(f"  moment-arm RMS error over {self.ma_pairs} pairs: median {self.ma_median * 1e3:.3g} mm, "
                      f"95th percentile {self.ma_p95 * 1e3:.3g} mm, max {self.ma_max * 1e3:.3g} mm "
                      f"(MuJoCo finite differences vs Jacobian: {self.ma_fd_vs_jacobian * 1e3:.2g} mm)")
+        lines.append(f"  against OpenSim's own -dL/dq: median {self.ma_dldq_median * 1e3:.3g} mm, 95th percentile "
+                     f"{self.ma_dldq_p95 * 1e3:.3g} mm, max {self.ma_dldq_max * 1e3:.3g} mm")
         worst = [r for r in self.worst_moment_arms(3) if r[2].rms > 0]
         if worst:
             lines.append("  worst moment arms: " + "; ".join(
@@ -727,7 +737,24 @@ def compare_muscles(
     mj_nonzero = np.max(np.abs(np.stack(ma_mj)), axis=0) > MA_ZERO if ma_mj else np.zeros((nm, nc), bool)
     coord_objs = pair.indep
     moment_arms: dict[str, dict[str, MomentArmError]] = {n: {} for n in names}
-    rms_all = []
+    rms_all: list[float] = []
+    rms_fd_all: list[float] = []
+    dldq_cache: dict[tuple[int, int], np.ndarray] = {}
+
+    def os_dldq(k: int, j: int) -> np.ndarray:
+        """OpenSim's own -dL/dq of every path at moment-arm pose k about coordinate j."""
+        if (k, j) not in dldq_cache:
+            values = pair.os_indep_values(ma_states[k])
+            c = pair.indep_names[j]
+            h = FD_STEP * 10
+            try:
+                up = pair.os_lengths(pair.os_state({**values, c: values[c] + h}, assemble=bool(pair.dependent)))
+                dn = pair.os_lengths(pair.os_state({**values, c: values[c] - h}, assemble=bool(pair.dependent)))
+                dldq_cache[(k, j)] = -(up - dn) / (2 * h)
+            except Exception:
+                dldq_cache[(k, j)] = np.full(nm, np.nan)
+        return dldq_cache[(k, j)]
+
     for i, (name, _, obj) in enumerate(pair.matched):
         for j, cname in enumerate(pair.indep_names):
             if not ma_mj or not (cname in spans.get(name, set()) or mj_nonzero[i, j]):
@@ -737,6 +764,7 @@ def compare_muscles(
                 continue
             r_os = np.array([obj.computeMomentArm(ma_states[k], coord_objs[j]) for k in use], dtype=float)
             r_mj = np.array([ma_mj[k][i, j] for k in use])
+            r_fd = np.array([os_dldq(k, j)[i] for k in use])
             if np.max(np.abs(r_os)) <= MA_ZERO and np.max(np.abs(r_mj)) <= MA_ZERO:
                 continue
             d = r_mj - r_os
@@ -745,9 +773,12 @@ def compare_muscles(
                 max=float(np.max(np.abs(d))),
                 max_abs_opensim=float(np.max(np.abs(r_os))),
                 max_abs_mujoco=float(np.max(np.abs(r_mj))),
+                rms_vs_dldq=float(np.sqrt(np.mean((r_mj - r_fd) ** 2))),
+                opensim_compute_vs_dldq=float(np.sqrt(np.mean((r_os - r_fd) ** 2))),
             )
             moment_arms[name][cname] = e
             rms_all.append(e.rms)
+            rms_fd_all.append(e.rms_vs_dldq)
 
     nd = np.maximum(n_valid, 1)
     muscles = {
@@ -763,6 +794,7 @@ def compare_muscles(
         for i, (n, kind, _) in enumerate(pair.matched)
     }
     rms_arr = np.array(rms_all)
+    rms_fd = np.array([v for v in rms_fd_all if np.isfinite(v)])
     return MuscleReport(
         osim_path=pair.osim_path,
         mjcf_path=pair.mjcf_path,
@@ -777,6 +809,9 @@ def compare_muscles(
         ma_p95=float(np.percentile(rms_arr, 95)) if rms_all else 0.0,
         ma_max=float(rms_arr.max()) if rms_all else 0.0,
         ma_fd_vs_jacobian=fd_vs_jac,
+        ma_dldq_median=float(np.median(rms_fd)) if rms_fd.size else 0.0,
+        ma_dldq_p95=float(np.percentile(rms_fd, 95)) if rms_fd.size else 0.0,
+        ma_dldq_max=float(rms_fd.max()) if rms_fd.size else 0.0,
         missing_tendons=pair.missing_tendons,
         extra_tendons=pair.extra_tendons,
         actuator_issues=_actuator_issues(pair),

@@ -17,7 +17,8 @@ moment arms match OpenSim's over sampled poses:
   place; moment arms from the tendon Jacobian projected on each coordinate's direction.
 * Optimiser: CMA-ES (:mod:`cma`), seeded per tendon, parallel over tendons in a process pool.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
-  check poses; otherwise the tendon keeps its start. Each tendon's errors before and after go
+  check poses, and raises the worst length error on neither; otherwise the tendon keeps its
+  start. Each tendon's errors before and after go
   into the conversion report.
 """
 
@@ -230,7 +231,9 @@ def _fit_one(task: _Task) -> PathFit:
                 best_x, best_f = np.array(xs[k]), float(fs[k])
     before, after = ev.summary(x0, fit), ev.summary(best_x, fit)
     cb, ca = ev.summary(x0, check), ev.summary(best_x, check)
-    accepted = bool(after["objective"] < before["objective"] and ca["objective"] <= cb["objective"])
+    # better overall, on both pose sets, without a larger worst length error on either
+    accepted = bool(after["objective"] < before["objective"] and ca["objective"] <= cb["objective"]
+                    and after["len_max_pct"] <= before["len_max_pct"] and ca["len_max_pct"] <= cb["len_max_pct"])
     if not accepted:
         best_x, after, ca = x0, before, cb
     pos, rad, side = ev.values(best_x)
