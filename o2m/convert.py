@@ -49,6 +49,10 @@ class ConversionReport:
     path_fits: list[dict] = field(default_factory=list)
     #: Seconds spent fitting wrap geoms (part of ``seconds``).
     path_fit_seconds: float = 0.0
+    #: The ``path_forces`` option, and one :class:`o2m.tendons.PathForceRecord` (as a dict) per
+    #: path with same-body MovingPathPoint segments: which tendon it got and what that implies.
+    path_forces_mode: str = "auto"
+    path_forces: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -81,6 +85,16 @@ class ConversionReport:
         for reason, items in by_reason.items():
             shown = ", ".join(items[:8]) + (f", ... ({len(items)} in all)" if len(items) > 8 else "")
             lines.append(f"  {reason}: {shown}")
+        if self.path_forces:
+            lines.append("")
+            lines.append(f"Path forces ({self.path_forces_mode}; same-body MovingPathPoint segments, along which "
+                         f"OpenSim applies no tension):")
+            for r in self.path_forces:
+                arms = ", ".join(f"{c} {v:.3g}" for c, v in r["moment_arm_mm"].items())
+                lines.append(f"  {r['path']:12s} {r['mode']:9s} segments vary {r['variation_mm']:.3g} mm "
+                             f"({r['variation_pct']:.3g} % of {r['shortest_mm']:.4g} mm); length error "
+                             f"{r['length_error_mm']:.3g} mm ({r['length_error_pct']:.3g} %); computeMomentArm - "
+                             f"(-dL/dq) up to [mm] {arms}")
         if self.path_fits:
             from .wrapfit import PathFit, format_fits
 
@@ -110,7 +124,7 @@ class Conversion:
 
 def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | Path] | None = None,
             name: str | None = None, fit_mechanics: bool = True, fit_wraps: bool = True,
-            workers: int | None = None) -> Conversion:
+            workers: int | None = None, path_forces: str = "auto") -> Conversion:
     """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
 
     ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
@@ -119,7 +133,10 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     (:func:`o2m.wrapfit.fit_paths`, ``workers`` processes; quick sizes when ``O2M_QUICK`` is set).
     ``fit_mechanics`` fits each muscle
     actuator's force-length parameters to OpenSim's forces (:func:`o2m.muscles.fit_muscles`);
-    without it muscles get MuJoCo's defaults. Raises an :class:`~o2m.errors.O2MError`
+    without it muscles get MuJoCo's defaults. ``path_forces`` (``"auto"``, ``"opensim"``,
+    ``"kinematic"``) chooses, for a path with a MovingPathPoint next to a point of its own body,
+    whether the tendon is OpenSim's length or OpenSim's force transmission (see
+    :mod:`o2m.tendons`); the report records each choice. Raises an :class:`~o2m.errors.O2MError`
     subclass for bad input; nothing is written then.
     """
     t0 = time.perf_counter()
@@ -132,7 +149,7 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     result = builder.build()
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
-    tendons = add_paths(builder, paths, read_wrap_objects(reader))
+    tendons = add_paths(builder, paths, read_wrap_objects(reader), path_forces=path_forces)
     force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
     muscle_skipped = _fit_mechanics(result, osim) if fit_mechanics and any(
         p.owner_type in MUSCLE_TYPES for p in paths) else []
@@ -154,7 +171,7 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
 
             t_fit = time.perf_counter()
             xml0 = restore_geom_precision(builder.restore_precision(spec.to_xml()), tendons.exact)
-            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=workers)
+            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=workers, held=tendons.held)
             apply_fits(spec, fits, builder.exact, tendons.exact)
             model = spec.compile()
             fit_seconds = time.perf_counter() - t_fit
@@ -182,7 +199,8 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
             joints=result.joints, approximations=result.approximations,
             skipped=[s for s in skel.skipped if (s.element, s.name) not in force_conv.handled]
             + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings,
-            path_fits=[f.to_dict() for f in fits], path_fit_seconds=fit_seconds)
+            path_fits=[f.to_dict() for f in fits], path_fit_seconds=fit_seconds, path_forces_mode=path_forces,
+            path_forces=[asdict(r) for r in tendons.path_forces])
         report.write(stage, stem)
         _publish(stage, out_dir, stem)
     return Conversion(out_dir / f"{stem}.xml", report)

@@ -20,6 +20,19 @@
   OpenSim range) that passes closest to it at the reference pose, with a side site on the side
   that segment passes or that the quadrant names (MuJoCo 4.0: the tendon wraps the way the
   straight path through the side site goes).
+* Path forces (``path_forces``). OpenSim 4.6 applies a path's tension only along segments whose
+  two points are on different bodies (``GeometryPath::addInEquivalentForces`` skips a segment on
+  one body, and with it the generalized force of a MovingPathPoint moving along it), while its
+  ``getLength`` sums every segment. Where a MovingPathPoint sits next to a point of its own body,
+  OpenSim's dynamic moment arm (``computeMomentArm``) is therefore not ``-dL/dq`` of its length.
+  A MuJoCo tendon has one length for both, so each such path chooses: ``"kinematic"`` (the tendon
+  is OpenSim's length; its moment arm is ``-dL/dq``) or ``"opensim"`` (the same-body segments
+  become a MuJoCo pulley branch of constant length, the midrange of their summed length over the
+  sampled poses, so the tendon's moment arm is OpenSim's ``computeMomentArm`` and its length
+  OpenSim's within half the segments' variation). ``"auto"`` (default) takes ``"opensim"`` for
+  a path whose same-body segments vary by at most :data:`PATH_FORCES_AUTO_VARIATION` of its
+  length, else ``"kinematic"``. Each choice is recorded with the length and moment-arm
+  differences it implies (:attr:`TendonBuilder.path_forces`).
 * Each muscle becomes a MuJoCo muscle actuator on its tendon, named as the muscle.
 """
 
@@ -47,6 +60,17 @@ CARRIER_ARMATURE = 0.1
 SIDE_SITE_DISTANCE = 2.0
 #: Radius (m) of the wrap sphere that stands for a ConditionalPathPoint.
 CONDITIONAL_RADIUS = 0.002
+#: The choices of ``path_forces`` (see the module notes).
+PATH_FORCE_MODES = ("auto", "opensim", "kinematic")
+#: ``path_forces="auto"``: a path's same-body MovingPathPoint segments are held constant
+#: ("opensim") when their summed length varies (peak to peak, over the sampled poses) by at most
+#: this fraction of the path's shortest length, so that the tendon length stays within half that
+#: (1 %, the length target) of OpenSim's; else the tendon keeps them ("kinematic").
+PATH_FORCES_AUTO_VARIATION = 0.02
+#: Random poses (seeded, plus the reference pose) over which a path's same-body segments are measured.
+PATH_FORCE_POSES = 200
+#: Central-difference step (rad or m) of the moment-arm difference the two choices imply.
+PATH_FORCE_FD_STEP = 1e-6
 
 
 @dataclass
@@ -60,19 +84,61 @@ class _PlacedWrap:
 class PathGeom:
     """A wrap geom of one tendon (MuJoCo names), for :mod:`o2m.wrapfit`: ``kind`` is the OpenSim
     element it stands for (``WrapSphere``, ``WrapCylinder``, ``WrapEllipsoid`` or
-    ``ConditionalPathPoint``) and ``source`` its OpenSim name."""
+    ``ConditionalPathPoint``), ``source`` its OpenSim name and ``body`` the OpenSim body it is on."""
 
     tendon: str
     geom: str
     sidesite: str
     kind: str
     source: str
+    body: str = ""
+
+
+@dataclass
+class PathForceRecord:
+    """What ``path_forces`` chose for one path with same-body MovingPathPoint segments.
+
+    ``segments``: the OpenSim point pairs (one body, at least one moving) OpenSim applies no
+    tension along; ``mode``: ``"opensim"`` (held at ``held_length`` m in a pulley branch) or
+    ``"kinematic"`` (kept in the tendon); ``variation_mm``/``variation_pct``: peak-to-peak change
+    of their summed length over the sampled poses (percent of ``shortest_mm``, a lower bound of
+    the path's length: its points joined straight); ``length_error_mm``/``length_error_pct``: the
+    tendon length error the choice implies against OpenSim's ``getLength`` (half the variation for
+    ``"opensim"``, 0 for ``"kinematic"``); ``moment_arm_mm``: per independent coordinate, the
+    largest difference between ``computeMomentArm`` and ``-dL/dq`` that the segments cause: the
+    moment-arm error against ``computeMomentArm`` for ``"kinematic"`` and against ``-dL/dq`` for
+    ``"opensim"``; ``blocked``: same-body segments kept because a wrap or conditional point of
+    another body acts on them."""
+
+    path: str
+    kind: str
+    mode: str
+    requested: str
+    segments: list[tuple[str, str]]
+    held_length: float
+    variation_mm: float
+    variation_pct: float
+    shortest_mm: float
+    length_error_mm: float
+    length_error_pct: float
+    moment_arm_mm: dict[str, float]
+    blocked: list[tuple[str, str]]
 
 
 class TendonBuilder:
     """Adds the paths of a skeleton to an :class:`MjcfBuilder`'s spec."""
 
-    def __init__(self, builder: MjcfBuilder, wraps: dict[str, WrapObject]):
+    def __init__(self, builder: MjcfBuilder, wraps: dict[str, WrapObject], path_forces: str = "auto"):
+        if path_forces not in PATH_FORCE_MODES:
+            raise ValueError(f"path_forces must be one of {', '.join(PATH_FORCE_MODES)}, not {path_forces!r}")
+        self.path_forces_mode = path_forces
+        #: One :class:`PathForceRecord` per path with same-body MovingPathPoint segments.
+        self.path_forces: list[PathForceRecord] = []
+        #: Paths whose same-body segments are held ("opensim"): name -> {"pairs": [(OpenSim point,
+        #: point)], "length": held length (m)}, for :mod:`o2m.wrapfit`'s targets.
+        self.held: dict[str, dict] = {}
+        self._samples: list[tuple[dict[str, float], dict[str, float]]] | None = None
+        self._frames: dict[int, dict[str, Transform]] = {}
         self.b = builder
         self.spec = builder.spec
         self.wraps = wraps
@@ -221,7 +287,7 @@ class TendonBuilder:
             f"{path.owner}: ConditionalPathPoint '{point.name}' (active for '{cname}' in [{lo:g}, {hi:g}]) is a "
             f"wrap sphere of radius {r:g} m at the point: the tendon passes through it while it lies outside the "
             f"straight line between its neighbours")
-        self.path_geoms.append(PathGeom(path.owner, gname, sname, "ConditionalPathPoint", point.name))
+        self.path_geoms.append(PathGeom(path.owner, gname, sname, "ConditionalPathPoint", point.name, point.body))
         return gname, sname
 
     def add_point(self, path: Path, point: PathPoint) -> str:
@@ -379,37 +445,192 @@ class TendonBuilder:
         self.b.exact[("site", name)] = {"pos": pos}
         return name
 
+    # -- path forces ---------------------------------------------------------------------
+    def _moves(self, point: PathPoint) -> bool:
+        return any(not self._fixed(c) for c, _ in point.moving.values())
+
+    def _pose_samples(self) -> list[tuple[dict[str, float], dict[str, float]]]:
+        """(independent values, every coordinate's value) of the reference pose and of
+        :data:`PATH_FORCE_POSES` random poses (seed 0) with every free coordinate uniform in its range."""
+        if self._samples is None:
+            rng = np.random.default_rng(0)
+            free = [n for n, d in self.b.drivers.items() if d.base == n and not self._fixed(n)]
+            ranges = [self.b.fit_range(n, self.b.coord_joint[n][1].kind if n in self.b.coord_joint else "rotation")
+                      for n in free]
+            bases = [{n: self.b.ref[n] for n in free}]
+            bases += [{n: float(rng.uniform(lo, hi)) for n, (lo, hi) in zip(free, ranges, strict=True)}
+                      for _ in range(PATH_FORCE_POSES)]
+            self._samples = [(b, self.b.coordinate_values(b)) for b in bases]
+        return self._samples
+
+    def _sample_frames(self, k: int) -> dict[str, Transform]:
+        if k not in self._frames:
+            self._frames[k] = self.b.ground_frames_at(self._pose_samples()[k][1])
+        return self._frames[k]
+
+    def _straight_length(self, path: Path, k: int) -> float:
+        """Length (m) of ``path`` at pose sample ``k`` with its active points joined straight
+        (a lower bound of OpenSim's length, which wrapping only lengthens)."""
+        values = self._pose_samples()[k][1]
+        frames = self._sample_frames(k)
+        pts = [frames[p.body].apply(self.location_at(p, values)) for p in path.points if self._active(p, values)]
+        return float(sum(np.linalg.norm(b - a) for a, b in zip(pts[:-1], pts[1:], strict=True)))
+
+    def plan_path_forces(self, path: Path, roles: list[str], site_point: list[int],
+                         planned: dict[int, tuple]) -> tuple[list[int], float]:
+        """The site segments of ``path`` to leave out of its tendon (``path_forces``) and the
+        length (m) to hold them at; records the choice (:class:`PathForceRecord`, an
+        :class:`Approximation`). A candidate is a segment between two sites on one body, one of
+        them a moving point, that no wrap or conditional point of another body acts on."""
+        pts = path.points
+        cands: list[tuple[int, PathPoint, PathPoint]] = []
+        blocked: list[tuple[str, str]] = []
+        for i in range(len(site_point) - 1):
+            a, b = pts[site_point[i]], pts[site_point[i + 1]]
+            if a.body != b.body or not (self._moves(a) or self._moves(b)):
+                continue
+            others = [pts[k].name for k in range(site_point[i] + 1, site_point[i + 1])
+                      if roles[k] == "conditional" and pts[k].body != a.body]
+            item = planned.get(i)
+            if item is not None and item[0] == "wrap" and item[1].body != a.body:
+                others.append(item[1].name)
+            if others:
+                blocked.append((a.name, b.name))
+                self.b.result.notes.append(f"{path.owner}: same-body segment {a.name}-{b.name} kept in the tendon "
+                                           f"({', '.join(others)} of another body acts on it)")
+            else:
+                cands.append((i, a, b))
+        if not cands:
+            return [], 0.0
+        samples = self._pose_samples()
+
+        def held(values: dict[str, float]) -> float:
+            return float(sum(np.linalg.norm(self.location_at(a, values) - self.location_at(b, values))
+                             for _, a, b in cands))
+
+        lengths = np.array([held(v) for _, v in samples])
+        shortest = min(self._straight_length(path, k) for k in range(len(samples)))
+        bases = sorted({self.b.drivers[c].base for _, a, b in cands for p in (a, b) for c, _ in p.moving.values()
+                        if not self._fixed(c)})
+        h = PATH_FORCE_FD_STEP
+        arms = {}
+        for c in bases:
+            d = [abs(held(self.b.coordinate_values({**base, c: base[c] + h}))
+                     - held(self.b.coordinate_values({**base, c: base[c] - h}))) / (2 * h) for base, _ in samples]
+            arms[c] = float(max(d)) * 1e3
+        variation = float(lengths.max() - lengths.min())
+        pct = 100.0 * variation / max(shortest, 1e-12)
+        mode = self.path_forces_mode
+        if mode == "auto":
+            mode = "opensim" if variation <= PATH_FORCES_AUTO_VARIATION * shortest else "kinematic"
+        c_held = 0.5 * float(lengths.max() + lengths.min())
+        opensim = mode == "opensim"
+        segs = [(a.name, b.name) for _, a, b in cands]
+        held_frac = 0.5 if opensim else 0.0  # the length error: half the variation when held
+        rec = PathForceRecord(path.owner, path.owner_type, mode, self.path_forces_mode, segs,
+                              c_held if opensim else 0.0, variation * 1e3, pct, shortest * 1e3,
+                              held_frac * variation * 1e3, held_frac * pct, arms, blocked)
+        self.path_forces.append(rec)
+        seg_txt = ", ".join(f"{a}-{b}" for a, b in segs)
+        worst_arm = max(arms.values(), default=0.0)
+        arm_txt = ", ".join(f"{v:.3g} mm ({c})" for c, v in arms.items())
+        if opensim:
+            self.held[path.owner] = {"pairs": segs, "length": c_held}
+            self.b.result.approximations.append(Approximation(
+                path.owner_type, path.owner,
+                f"tendon is OpenSim's force transmission: same-body segment(s) {seg_txt} (OpenSim applies no "
+                f"tension along them) held at {c_held * 1e3:.4g} mm in a pulley branch",
+                0.5 * pct, "% of the path length (vs getLength)",
+                f"length error up to {0.5 * variation * 1e3:.3g} mm; moment arm = computeMomentArm, differs from "
+                f"OpenSim's -dL/dq by up to {arm_txt}"))
+        else:
+            self.b.result.approximations.append(Approximation(
+                path.owner_type, path.owner,
+                f"tendon is OpenSim's length, same-body segment(s) {seg_txt} included: its moment arm is -dL/dq, "
+                f"not OpenSim's computeMomentArm (OpenSim applies no tension along them)",
+                worst_arm, "mm moment arm (vs computeMomentArm)",
+                f"by coordinate {arm_txt}; holding them would change the length by {pct:.3g} % peak to peak"
+                + (f" (> {100 * PATH_FORCES_AUTO_VARIATION:g} %)" if self.path_forces_mode == "auto" else "")))
+        return ([i for i, _, _ in cands], c_held) if opensim else ([], 0.0)
+
+    def _held_branch(self, path: Path, a: PathPoint, b: PathPoint, length: float) -> list[str]:
+        """Two sites on ``a``'s body, ``length`` apart along the segment a-b at the reference pose:
+        a constant-length pulley branch standing for the segments held (drawn where they are)."""
+        pa, pb = np.asarray(a.location, dtype=float), np.asarray(b.location, dtype=float)
+        u = pb - pa
+        u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-12 else np.array([1.0, 0.0, 0.0])
+        names = []
+        for tag, loc in (("a", pa), ("b", pa + length * u)):
+            name = self._unique(f"{path.owner}-held_{tag}")
+            pos = self._in_world(a.body, Transform(pos=loc)).pos
+            self.b.bodies[a.body].add_site(name=name, pos=pos, size=[0.001, 0, 0], group=5)
+            self.b.exact[("site", name)] = {"pos": pos}
+            names.append(name)
+        return names
+
     # -- tendons and actuators -----------------------------------------------------------
     def add_path(self, path: Path) -> None:
         roles = self.conditional_roles(path)
-        sites: list[str] = []
+        site_point = [k for k, r in enumerate(roles) if r == "site"]
         site_of_point: list[int] = []  # for each point, the index of the last site at or before it
-        for p, role in zip(path.points, roles, strict=True):
-            if role == "site":
-                sites.append(self.add_point(path, p))
-            site_of_point.append(len(sites) - 1)
-        on_segment: dict[int, tuple[str, str]] = {}  # site segment -> (geom, side site)
+        for role in roles:
+            site_of_point.append((site_of_point[-1] if site_of_point else -1) + (role == "site"))
+        sites_ground = np.array([(self.b.ground_frames[p.body] @ Transform(pos=p.location)).pos for p in path.points])
+        # what each site segment wraps, decided before any geom is made
+        planned: dict[int, tuple] = {}  # site segment -> ("conditional", point) or ("wrap", WrapObject, segment)
         for k, role in enumerate(roles):
             if role == "conditional":
-                on_segment[site_of_point[k]] = self.conditional_geom(path, k, roles)
-        sites_ground = np.array([(self.b.ground_frames[p.body] @ Transform(pos=p.location)).pos for p in path.points])
+                planned[site_of_point[k]] = ("conditional", k)
         for seg, wrap in self.place_wraps(path, sites_ground):
             sseg = site_of_point[seg]
-            if sseg in on_segment:
+            if sseg in planned:
+                kind, other = planned[sseg][0], planned[sseg][1]
+                what = (f"ConditionalPathPoint '{path.points[other].name}'" if kind == "conditional"
+                        else f"'{other.name}'")
                 self.b.result.notes.append(f"{path.owner}: wrap object '{wrap.name}' left out (its path segment "
-                                           f"already wraps '{on_segment[sseg][0]}'; MuJoCo wraps one geom there)")
+                                           f"already wraps {what}; MuJoCo wraps one geom there)")
                 continue
+            planned[sseg] = ("wrap", wrap, seg)
+        dropped, held_length = self.plan_path_forces(path, roles, site_point, planned)
+        sites = [self.add_point(path, path.points[k]) for k in site_point]
+        on_segment: dict[int, tuple[str, str]] = {}  # site segment -> (geom, side site)
+        for sseg, item in sorted(planned.items(), key=lambda kv: (kv[1][0] != "conditional", kv[0])):
+            if sseg in dropped:
+                self.b.result.notes.append(f"{path.owner}: {item[0]} on the held segment "
+                                           f"{sites[sseg]}-{sites[sseg + 1]} left out with it")
+                continue
+            if item[0] == "conditional":
+                on_segment[sseg] = self.conditional_geom(path, item[1], roles)
+                continue
+            wrap, seg = item[1], item[2]
             geom = self.wrap_geom(wrap)
             if geom is None:
                 continue
             side = self.side_site(wrap, geom, sites_ground[seg], sites_ground[seg + 1])
             on_segment[sseg] = (geom, side)
-            self.path_geoms.append(PathGeom(path.owner, geom, side, "Wrap" + wrap.kind.capitalize(), wrap.name))
+            self.path_geoms.append(PathGeom(path.owner, geom, side, "Wrap" + wrap.kind.capitalize(), wrap.name,
+                                            wrap.body))
+        branches: list[list[int]] = [[0]]
+        for i in range(len(sites) - 1):
+            if i in dropped:
+                branches.append([i + 1])
+            else:
+                branches[-1].append(i + 1)
+        runs = [[sites[i] for i in br] for br in branches if len(br) > 1]
+        if dropped:
+            first = dropped[0]
+            runs.append(self._held_branch(path, path.points[site_point[first]], path.points[site_point[first + 1]],
+                                          held_length))
         tendon = self.spec.add_tendon(name=path.owner)
-        for i, site in enumerate(sites):
-            tendon.wrap_site(site)
-            if i in on_segment and i + 1 < len(sites):
-                tendon.wrap_geom(*on_segment[i])
+        index = {name: i for i, name in enumerate(sites)}
+        for r, run in enumerate(runs):
+            if r:
+                tendon.wrap_pulley(1.0)
+            for k, site in enumerate(run):
+                tendon.wrap_site(site)
+                i = index.get(site)
+                if k + 1 < len(run) and i is not None and i in on_segment:
+                    tendon.wrap_geom(*on_segment[i])
         if path.owner_type in MUSCLE_TYPES:
             act = self.spec.add_actuator(name=path.owner, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=path.owner)
             fmax = float(path.element.findtext("max_isometric_force") or 1000.0)
@@ -433,10 +654,12 @@ def _rotation_taking_z_to(axis: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def add_paths(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, WrapObject]) -> TendonBuilder:
+def add_paths(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, WrapObject], *,
+              path_forces: str = "auto") -> TendonBuilder:
     """Add every path (tendon, sites, wrap geoms, actuator) to ``builder``'s spec; returns the
-    :class:`TendonBuilder` (its ``path_geoms`` and ``exact`` geom values)."""
-    tb = TendonBuilder(builder, wraps)
+    :class:`TendonBuilder` (its ``path_geoms``, ``exact`` geom values, ``path_forces`` records and
+    ``held`` segments). ``path_forces``: see the module notes."""
+    tb = TendonBuilder(builder, wraps, path_forces)
     for path in paths:
         tb.add_path(path)
     return tb

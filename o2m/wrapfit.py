@@ -10,7 +10,10 @@ moment arms match OpenSim's over sampled poses:
   each pose and MuJoCo takes its independent values, equality-driven joints resolved.
 * Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
   OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
-  them), for every coordinate the path spans.
+  them), for every coordinate the path spans. For a tendon whose same-body segments are held
+  (``path_forces="opensim"``, :mod:`o2m.tendons`) the targets are what that tendon stands for:
+  the length with those segments replaced by their held length, and its ``-dL/dq`` (OpenSim's
+  ``computeMomentArm``).
 * Objective: mean squared length error plus mean squared moment-arm error, both in mm².
   MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a reduced copy of the model
   (that tendon only, no meshes) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are changed in
@@ -248,9 +251,24 @@ def _fit_one(task: _Task) -> PathFit:
 # --------------------------------------------------------------------------------------------
 
 
-def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int
-             ) -> tuple[Any, dict[str, dict[str, Any]]]:
-    """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms."""
+def _held_correction(pair: Any, state: Any, held: dict[str, dict], col: dict[str, int]) -> np.ndarray:
+    """(n paths,) what a held tendon's length differs from OpenSim's getLength in ``state``: its
+    held length minus the current length of its held same-body segments (0 for other paths)."""
+    out = np.zeros(len(col))
+    for name, h in held.items():
+        if name not in col:
+            continue
+        pps = pair.force(name).getGeometryPath().getPathPointSet()
+        now = sum(float(np.linalg.norm(pps.get(a).getLocationInGround(state).to_numpy()
+                                       - pps.get(b).getLocationInGround(state).to_numpy())) for a, b in h["pairs"])
+        out[col[name]] = h["length"] - now
+    return out
+
+
+def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
+             held: dict[str, dict] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
+    """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
+    (of the held tendon, for the paths in ``held``)."""
     from .validate import _sample_bounds, joint_qpos_address, resolve_joint_equalities
     from .validate_muscles import SPIKE_TOL, _coordinate_direction, _Pair, _qpos_to_dof, opensim_spikes
 
@@ -260,6 +278,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     col = {n: i for i, n in enumerate(names)}
     spans = pair.spanned()
     wanted = [t for t in tendons if t in col]
+    held = {t: h for t, h in (held or {}).items() if t in wanted}
     coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
                     key=pair.indep_names.index)
     rng = np.random.default_rng(seed)
@@ -273,14 +292,17 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         try:
             state = pair.os_state(values)
             values = pair.os_indep_values(state)
-            base = pair.os_lengths(state)
+            raw = pair.os_lengths(state)
+            base = raw + _held_correction(pair, state, held, col)
             arm = np.zeros((len(names), len(coords)))
             asm = bool(pair.dependent)
             for j, c in enumerate(coords):
                 ma = []
                 for h in (OS_FD_STEP, 10 * OS_FD_STEP):
-                    up = pair.os_lengths(pair.os_state({**values, c: values[c] + h}, assemble=asm))
-                    dn = pair.os_lengths(pair.os_state({**values, c: values[c] - h}, assemble=asm))
+                    s_up = pair.os_state({**values, c: values[c] + h}, assemble=asm)
+                    up = pair.os_lengths(s_up) + _held_correction(pair, s_up, held, col)
+                    s_dn = pair.os_state({**values, c: values[c] - h}, assemble=asm)
+                    dn = pair.os_lengths(s_dn) + _held_correction(pair, s_dn, held, col)
                     ma.append(-(up - dn) / (2 * h))
                 # a length discontinuity within the step (a wrap flipping) is no moment arm
                 arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
@@ -290,7 +312,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         ok = np.ones(len(names), dtype=bool)
         err = np.abs(pair.mj_lengths(values)[pair.tendon_ids] - base)
         suspects = wanted_idx[err[wanted_idx] > SPIKE_TOL]
-        for i in opensim_spikes(pair, values, suspects, base):
+        for i in opensim_spikes(pair, values, suspects, raw):
             ok[i] = False
         valid.append(ok)
         q = np.array(m.qpos0, dtype=float)
@@ -315,13 +337,16 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
 
 def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any], *, seed: int = 0,
               quick: bool | None = None, workers: int | None = None, progress: bool = False,
-              n_poses: int | None = None, evals: int | None = None) -> list[PathFit]:
+              n_poses: int | None = None, evals: int | None = None,
+              held: dict[str, dict] | None = None) -> list[PathFit]:
     """Fit the wrap geoms and side sites of every tendon in ``path_geoms`` (each a
     :class:`o2m.tendons.PathGeom`) of the model ``xml`` (MJCF text) to OpenSim ``osim_path``.
 
     ``quick`` (default: :func:`quick_mode`) uses :data:`QUICK` sizes instead of :data:`FULL`;
     ``n_poses``/``evals`` override them. ``workers`` processes (default: every core) fit the
-    tendons in parallel. Returns one :class:`PathFit` per tendon, in ``path_geoms`` order.
+    tendons in parallel. ``held`` (:attr:`o2m.tendons.TendonBuilder.held`) names the tendons whose
+    same-body segments are held, and how. Returns one :class:`PathFit` per tendon, in
+    ``path_geoms`` order.
     """
     from tqdm.auto import tqdm
 
@@ -338,7 +363,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         path = os.path.join(tmp, "model.xml")
         with open(path, "w") as fh:
             fh.write(reduced_xml(xml))
-        _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed)
+        _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held)
     tasks = []
     for k, (tendon, geoms) in enumerate(by_tendon.items()):
         tg = targets.get(tendon)

@@ -160,7 +160,7 @@ def _perturbed_xml(conv) -> str:
 
     root = etree.fromstring(conv.xml.read_bytes())
     for g in root.iter("geom"):
-        if g.get("type") in ("sphere", "cylinder") and g.get("contype") == "0":
+        if g.get("type", "sphere") in ("sphere", "cylinder") and g.get("contype") == "0":  # sphere: the default type
             pos = [float(v) for v in g.get("pos", "0 0 0").split()]
             pos[1] += 0.01
             size = [float(v) for v in g.get("size").split()]
