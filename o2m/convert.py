@@ -124,13 +124,14 @@ class Conversion:
 
 def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | Path] | None = None,
             name: str | None = None, fit_mechanics: bool = True, fit_wraps: bool = True,
-            workers: int | None = None, path_forces: str = "auto") -> Conversion:
+            workers: int | None = None, path_forces: str = "auto", quick: bool | None = None) -> Conversion:
     """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
 
     ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
     its ``Geometry/`` subfolder, as OpenSim searches. ``fit_wraps`` fits the wrap geoms and side
     sites of every path with wrapping or conditional points to OpenSim's lengths and moment arms
-    (:func:`o2m.wrapfit.fit_paths`, ``workers`` processes; quick sizes when ``O2M_QUICK`` is set).
+    (:func:`o2m.wrapfit.fit_paths`, ``workers`` processes; its quick sizes when ``quick``, by
+    default when ``O2M_QUICK`` is set).
     ``fit_mechanics`` fits each muscle
     actuator's force-length parameters to OpenSim's forces (:func:`o2m.muscles.fit_muscles`);
     without it muscles get MuJoCo's defaults. ``path_forces`` (``"auto"``, ``"opensim"``,
@@ -171,7 +172,7 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
 
             t_fit = time.perf_counter()
             xml0 = restore_geom_precision(builder.restore_precision(spec.to_xml()), tendons.exact)
-            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=workers, held=tendons.held)
+            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=workers, held=tendons.held, quick=quick)
             apply_fits(spec, fits, builder.exact, tendons.exact)
             model = spec.compile()
             fit_seconds = time.perf_counter() - t_fit

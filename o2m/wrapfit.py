@@ -18,6 +18,12 @@ moment arms match OpenSim's over sampled poses:
   MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a reduced copy of the model
   (that tendon only, no meshes) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are changed in
   place; moment arms from the tendon Jacobian projected on each coordinate's direction.
+* Start: the converted geoms, except that a geom standing for a WrapEllipsoid also gets the
+  sphere (or, for a cylinder, the circle about its axis) fitted by least squares to the points
+  where OpenSim's path touches the ellipsoid (its wrap arcs over the fitting poses); CMA-ES
+  starts from whichever of the two fits better. (A mean-radius sphere misses the part of the
+  ellipsoid the path actually runs over: Arm26's BIClong over BIClonghh is 1.6 mm too long at
+  the default pose with it, 0.07 mm with the contact sphere.)
 * Optimiser: CMA-ES (:mod:`cma`), seeded per tendon, parallel over tendons in a process pool.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
@@ -38,6 +44,8 @@ from typing import Any
 import mujoco
 import numpy as np
 from lxml import etree
+
+from .transforms import OSIM_TO_MJ
 
 #: Poses to fit on and to check on, and the CMA-ES evaluation budget per tendon (full, quick).
 FULL = {"poses": 120, "check": 60, "evals": 1500}
@@ -97,6 +105,8 @@ class _Task:
     coordinates: list[str]
     seed: int
     evals: int
+    #: per geom: OpenSim's wrap-arc points on the object it stands for (MuJoCo body frame, (n, 3)), or None
+    contacts: list[np.ndarray | None] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------------------------
@@ -165,6 +175,35 @@ class _Evaluator:
                 side[k] = pos[k] + rot @ (radial + axial)
         return pos, rad, side
 
+    def contact_start(self) -> np.ndarray | None:
+        """Parameters putting each geom with contact points on the sphere (cylinder: the circle
+        about its axis) fitted to them by least squares, its side site kept in its direction from
+        the centre at its distance in radii; None when no geom has enough points."""
+        th = np.zeros((len(self.gid), 7))
+        changed = False
+        for k, pts in enumerate(self.t.contacts or []):
+            if pts is None or len(pts) < 8:
+                continue
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, self.m.geom_quat[self.gid[k]])
+            rot = rot.reshape(3, 3)
+            local = (np.asarray(pts) - self.pos0[k]) @ rot  # in the geom frame
+            dims = 2 if self.cyl[k] else 3
+            fit = _least_squares_sphere(local[:, :dims])
+            if fit is None:
+                continue
+            centre, radius = fit
+            c_local = np.zeros(3)
+            c_local[:dims] = centre
+            pos = self.pos0[k] + rot @ c_local
+            rel = self.side0[k] - self.pos0[k]
+            side = pos + rel * (radius / self.rad0[k])
+            th[k, 0:3] = (pos - self.pos0[k]) / self.scale[k]
+            th[k, 3] = np.log(radius / self.rad0[k])
+            th[k, 4:7] = (side - self.side0[k]) / self.scale[k]
+            changed = True
+        return np.clip(th.ravel(), -4.0, 4.0) if changed else None
+
     def apply(self, theta: np.ndarray) -> None:
         pos, rad, side = self.values(theta)
         self.m.geom_pos[self.gid] = pos
@@ -207,6 +246,19 @@ class _Evaluator:
                 "objective": _objective(le, me)}
 
 
+def _least_squares_sphere(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Centre and radius of the sphere (circle, for 2-D points) nearest ``pts`` in the algebraic
+    least-squares sense, or None when the points do not determine one."""
+    a = np.c_[2.0 * pts, np.ones(len(pts))]
+    b = np.sum(pts**2, axis=1)
+    sol, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
+    if rank < a.shape[1]:
+        return None
+    centre = sol[:-1]
+    r2 = float(sol[-1] + centre @ centre)
+    return (centre, float(np.sqrt(r2))) if r2 > 0 else None
+
+
 def _objective(le: np.ndarray, me: np.ndarray) -> float:
     """Mean squared length error plus mean squared moment-arm error (mm²); NaN targets left out."""
     ok = np.isfinite(me)
@@ -222,8 +274,13 @@ def _fit_one(task: _Task) -> PathFit:
     x0 = np.zeros(ev.n_params)
     f0 = ev.objective(x0, fit)
     best_x, best_f = x0, f0
+    start = ev.contact_start()
+    if start is not None:
+        f_start = ev.objective(start, fit)
+        if f_start < best_f:
+            best_x, best_f = start, f_start
     if ev.n_params and task.evals > 0:
-        es = cma.CMAEvolutionStrategy(x0, 0.3, {"seed": int(task.seed) + 1, "maxfevals": int(task.evals),
+        es = cma.CMAEvolutionStrategy(best_x, 0.3, {"seed": int(task.seed) + 1, "maxfevals": int(task.evals),
                                                 "verbose": -9, "bounds": [-4.0, 4.0], "tolfun": 1e-9})
         while not es.stop():
             xs = es.ask()
@@ -265,10 +322,27 @@ def _held_correction(pair: Any, state: Any, held: dict[str, dict], col: dict[str
     return out
 
 
+def _wrap_contacts(pair: Any, state: Any, tendon: str, wraps: set[str]) -> dict[str, list[np.ndarray]]:
+    """OpenSim's wrap-arc points (in the wrap object's body frame) of ``tendon`` on each of ``wraps``."""
+    import opensim
+
+    out: dict[str, list[np.ndarray]] = {}
+    cp = pair.force(tendon).getGeometryPath().getCurrentPath(state)
+    for i in range(cp.getSize()):
+        pw = opensim.PathWrapPoint.safeDownCast(cp.get(i))
+        if pw is None or pw.getWrapObject().getName() not in wraps:
+            continue
+        arc = pw.getWrapPath(state)
+        out.setdefault(pw.getWrapObject().getName(), []).extend(arc.get(k).to_numpy() for k in range(arc.getSize()))
+    return out
+
+
 def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
-             held: dict[str, dict] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
+             held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
+             n_contact: int = 0) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
-    (of the held tendon, for the paths in ``held``)."""
+    (of the held tendon, for the paths in ``held``) and, over the first ``n_contact`` poses, the
+    wrap-arc points of each tendon's wrap objects named in ``contacts`` (tendon -> wrap names)."""
     from .validate import _sample_bounds, joint_qpos_address, resolve_joint_equalities
     from .validate_muscles import SPIKE_TOL, _coordinate_direction, _Pair, _qpos_to_dof, opensim_spikes
 
@@ -284,6 +358,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     rng = np.random.default_rng(seed)
     bounds = np.array([_sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
     qpos, lengths, arms, valid = [], [], [], []
+    touched: list[dict[str, dict[str, list[np.ndarray]]]] = []  # per pose: tendon -> wrap -> points
+    contacts = {t: w for t, w in (contacts or {}).items() if t in wanted and w}
     wanted_idx = np.array([col[t] for t in wanted], dtype=int)
     attempts = 0
     while len(qpos) < n_poses and attempts < 4 * n_poses:
@@ -315,6 +391,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         for i in opensim_spikes(pair, values, suspects, raw):
             ok[i] = False
         valid.append(ok)
+        touched.append({t: _wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
+                       if len(touched) < n_contact else {})
         q = np.array(m.qpos0, dtype=float)
         for n, v in values.items():
             q[joint_qpos_address(m, n)] = v
@@ -331,7 +409,11 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         rows = ok_a[:, col[t]]
         out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": len_a[rows, col[t]],
                   "arm": arm_a[rows, col[t]][:, cs], "coordinates": [coords[j] for j in cs],
-                  "spikes": int(np.sum(~rows))}
+                  "spikes": int(np.sum(~rows)), "contacts": {}}
+        for k, pose in enumerate(touched):
+            if ok_a[k, col[t]]:
+                for w, pts in pose.get(t, {}).items():
+                    out[t]["contacts"].setdefault(w, []).extend(pts)
     return m, out
 
 
@@ -363,15 +445,24 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         path = os.path.join(tmp, "model.xml")
         with open(path, "w") as fh:
             fh.write(reduced_xml(xml))
-        _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held)
+        ellipsoids = {t: {g.source for g in gs if g.kind == "WrapEllipsoid"} for t, gs in by_tendon.items()}
+        _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
+                              ellipsoids, n_fit)
     tasks = []
     for k, (tendon, geoms) in enumerate(by_tendon.items()):
         tg = targets.get(tendon)
         if tg is None or len(tg["qpos"]) < 2:
             continue
+        contacts = []
+        for g in geoms:
+            pts = tg["contacts"].get(g.source) if g.kind == "WrapEllipsoid" else None
+            if pts:
+                pts = np.array(pts)
+                pts = pts @ OSIM_TO_MJ.T if g.body == "ground" else pts  # MuJoCo's ground is Z-up
+            contacts.append(pts if pts is not None and len(pts) else None)
         tasks.append(_Task(tendon, reduced_xml(xml, tendon), [g.geom for g in geoms], [g.sidesite for g in geoms],
                            [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
-                           min(n_fit, len(tg["qpos"]) - 1), tg["coordinates"], seed * 1000 + k, budget))
+                           min(n_fit, len(tg["qpos"]) - 1), tg["coordinates"], seed * 1000 + k, budget, contacts))
     workers = max(1, min(workers or os.cpu_count() or 1, len(tasks)))
     bar = tqdm(total=len(tasks), disable=not progress, desc="wrap fit")
     results: dict[str, PathFit] = {}
