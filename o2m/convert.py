@@ -53,6 +53,11 @@ class ConversionReport:
     #: path with same-body MovingPathPoint segments: which tendon it got and what that implies.
     path_forces_mode: str = "auto"
     path_forces: list[dict] = field(default_factory=list)
+    #: The moment-arm plots (``<stem>.moment_arms.pdf``: each path's worst coordinate swept, the
+    #: others at their defaults) and, per path, that pair's largest error (mm) against OpenSim's
+    #: computeMomentArm and against OpenSim's -dL/dq.
+    moment_arm_plots: str = ""
+    moment_arm_worst: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -95,6 +100,13 @@ class ConversionReport:
                              f"({r['variation_pct']:.3g} % of {r['shortest_mm']:.4g} mm); length error "
                              f"{r['length_error_mm']:.3g} mm ({r['length_error_pct']:.3g} %); computeMomentArm - "
                              f"(-dL/dq) up to [mm] {arms}")
+        if self.moment_arm_worst:
+            lines.append("")
+            lines.append(f"Moment arms over one-coordinate sweeps ({self.moment_arm_plots}), each path's worst pair, "
+                         f"max |MuJoCo - OpenSim| in mm (or dimensionless for a translation):")
+            for r in self.moment_arm_worst:
+                lines.append(f"  {r['muscle']:16s} {r['coordinate']:22s} vs computeMomentArm "
+                             f"{r['max_error_mm']:8.3g}   vs -dL/dq {r['max_error_vs_dldq_mm']:8.3g}")
         if self.path_fits:
             from .wrapfit import PathFit, format_fits
 
@@ -124,7 +136,8 @@ class Conversion:
 
 def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | Path] | None = None,
             name: str | None = None, fit_mechanics: bool = True, fit_wraps: bool = True,
-            workers: int | None = None, path_forces: str = "auto", quick: bool | None = None) -> Conversion:
+            workers: int | None = None, path_forces: str = "auto", quick: bool | None = None,
+            moment_arm_plots: bool = True) -> Conversion:
     """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
 
     ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
@@ -137,7 +150,10 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     without it muscles get MuJoCo's defaults. ``path_forces`` (``"auto"``, ``"opensim"``,
     ``"kinematic"``) chooses, for a path with a MovingPathPoint next to a point of its own body,
     whether the tendon is OpenSim's length or OpenSim's force transmission (see
-    :mod:`o2m.tendons`); the report records each choice. Raises an :class:`~o2m.errors.O2MError`
+    :mod:`o2m.tendons`); the report records each choice. ``moment_arm_plots`` writes
+    ``<stem>.moment_arms.pdf`` (:func:`o2m.validate_muscles.plot_moment_arm_sweeps`; 21 values a
+    sweep in quick mode, else 41) and lists each path's worst pair in the report. Raises an
+    :class:`~o2m.errors.O2MError`
     subclass for bad input; nothing is written then.
     """
     t0 = time.perf_counter()
@@ -189,6 +205,19 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
         except Exception as exc:
             raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
         forces.measure(force_conv, written, osim, builder)
+        plots, worst = "", []
+        if moment_arm_plots and written.ntendon:
+            from .validate_muscles import moment_arm_sweeps, plot_moment_arm_sweeps
+            from .wrapfit import quick_mode
+
+            fast = quick_mode() if quick is None else quick
+            drawn = plot_moment_arm_sweeps(moment_arm_sweeps(osim, xml_path, n=21 if fast else 41),
+                                           stage / f"{stem}.moment_arms.pdf", title=f"{skel.name}: moment arms (mm)")
+            plots = str(out_dir / f"{stem}.moment_arms.pdf")
+            scale = {True: 1.0, False: 1e3}
+            worst = [{"muscle": r["muscle"], "coordinate": r["coordinate"],
+                      "max_error_mm": r["max_error"] * scale[r["linear"]],
+                      "max_error_vs_dldq_mm": r["max_error_vs_dldq"] * scale[r["linear"]]} for r in drawn]
         warnings = [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
         report = ConversionReport(
             model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
@@ -201,7 +230,7 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
             skipped=[s for s in skel.skipped if (s.element, s.name) not in force_conv.handled]
             + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings,
             path_fits=[f.to_dict() for f in fits], path_fit_seconds=fit_seconds, path_forces_mode=path_forces,
-            path_forces=[asdict(r) for r in tendons.path_forces])
+            path_forces=[asdict(r) for r in tendons.path_forces], moment_arm_plots=plots, moment_arm_worst=worst)
         report.write(stage, stem)
         _publish(stage, out_dir, stem)
     return Conversion(out_dir / f"{stem}.xml", report)
@@ -268,5 +297,6 @@ def _publish(stage: Path, out_dir: Path, stem: str) -> None:
         (out_dir / MESH_FOLDER).mkdir(exist_ok=True)
         for f in (stage / MESH_FOLDER).iterdir():
             shutil.move(str(f), out_dir / MESH_FOLDER / f.name)
-    for suffix in (".report.json", ".report.txt", ".xml"):
-        shutil.move(str(stage / f"{stem}{suffix}"), out_dir / f"{stem}{suffix}")
+    for suffix in (".moment_arms.pdf", ".report.json", ".report.txt", ".xml"):
+        if (stage / f"{stem}{suffix}").exists():
+            shutil.move(str(stage / f"{stem}{suffix}"), out_dir / f"{stem}{suffix}")

@@ -16,7 +16,10 @@ that tendon with gear 1, so ``actuator_length == ten_length`` is OpenSim's muscl
   joint equalities, or the tendon Jacobian projected on the coordinate direction), the sign
   convention of OpenSim's ``computeMomentArm``.
 * :func:`moment_arm_curve` / :func:`plot_moment_arms` give / plot both models' moment arm of one
-  muscle about one coordinate over its range; :func:`format_muscle_table` summarises reports.
+  muscle about one coordinate over its range; :func:`moment_arm_sweeps` does that for every
+  (path, spanned coordinate) pair and :func:`plot_moment_arm_sweeps` draws each path's worst
+  pair into a small multi-page PDF (the conversion report's moment-arm plots);
+  :func:`format_muscle_table` summarises reports.
 """
 
 from __future__ import annotations
@@ -51,8 +54,10 @@ __all__ = [
     "format_muscle_table",
     "moment_arm_curve",
     "mujoco_moment_arms",
+    "moment_arm_sweeps",
     "mujoco_tendon_lengths",
     "opensim_spikes",
+    "plot_moment_arm_sweeps",
     "plot_moment_arms",
     "sweep_jumps",
 ]
@@ -984,3 +989,110 @@ def plot_moment_arms(
     ax.set_title(f"{muscle} about {coordinate}")
     ax.legend(frameon=False)
     return ax
+
+
+def moment_arm_sweeps(
+    osim_path: str | os.PathLike,
+    mjcf_path: str | os.PathLike,
+    *,
+    n: int = 41,
+    assembly_accuracy: float | None = 1e-12,
+) -> list[dict[str, Any]]:
+    """For every OpenSim path force with a MuJoCo tendon and every independent coordinate it
+    spans, sweep the coordinate over its range (``n`` values, the others at their defaults) and
+    record OpenSim's ``computeMomentArm``, OpenSim's own ``-dL/dq`` (central differences,
+    10 * :data:`FD_STEP`) and MuJoCo's ``-dL/dq`` (metres; dimensionless for a translational
+    coordinate). Returns one JSON-safe dict per pair: ``{"muscle", "coordinate", "linear",
+    "q", "opensim", "opensim_dldq", "mujoco", "max_error", "max_error_vs_dldq"}`` (the last two:
+    max |MuJoCo - OpenSim| over the sweep, NaN-free values only), largest ``max_error`` first.
+    OpenSim values at steps that fail to assemble are NaN."""
+    pair = _Pair(osim_path, mjcf_path, assembly_accuracy)
+    spans = pair.spanned()
+    names = [nm for nm, _, _ in pair.matched]
+    out = []
+    h = FD_STEP * 10
+    for c in pair.indep:
+        cname = c.getName()
+        users = [i for i, nm in enumerate(names) if cname in spans.get(nm, set())]
+        if not users:
+            continue
+        lo, hi = _sample_bounds(c)
+        qs = np.linspace(lo, hi, n)
+        r_os = np.full((n, len(users)), np.nan)
+        r_fd = np.full((n, len(users)), np.nan)
+        r_mj = np.empty((n, len(users)))
+        for k, q in enumerate(qs):
+            values = {**pair.defaults, cname: float(q)}
+            try:
+                st = pair.os_state(values)
+                values = pair.os_indep_values(st)
+                r_os[k] = [pair.matched[i][2].computeMomentArm(st, c) for i in users]
+                asm = bool(pair.dependent)
+                up = pair.os_lengths(pair.os_state({**values, cname: values[cname] + h}, assemble=asm))
+                dn = pair.os_lengths(pair.os_state({**values, cname: values[cname] - h}, assemble=asm))
+                r_fd[k] = -(up - dn)[users] / (2 * h)
+            except Exception:  # assembly failure: OpenSim NaN, MuJoCo at the requested value
+                pass
+            ma = mujoco_moment_arms(pair.mj_model, pair.mj_data, values, [cname], plan=pair.plan)
+            r_mj[k] = ma[pair.tendon_ids[users], 0]
+        linear = int(c.getMotionType()) == _TRANSLATIONAL
+        for col, i in enumerate(users):
+            d = np.abs(r_mj[:, col] - r_os[:, col])
+            dd = np.abs(r_mj[:, col] - r_fd[:, col])
+            out.append({"muscle": names[i], "coordinate": cname, "linear": linear, "q": qs.tolist(),
+                        "opensim": r_os[:, col].tolist(), "opensim_dldq": r_fd[:, col].tolist(),
+                        "mujoco": r_mj[:, col].tolist(),
+                        "max_error": float(np.nanmax(d)) if np.isfinite(d).any() else float("nan"),
+                        "max_error_vs_dldq": float(np.nanmax(dd)) if np.isfinite(dd).any() else float("nan")})
+    out.sort(key=lambda r: -(r["max_error"] if np.isfinite(r["max_error"]) else np.inf))
+    return out
+
+
+def plot_moment_arm_sweeps(sweeps: Sequence[Mapping[str, Any]], pdf_path: str | os.PathLike, *,
+                           per_page: int = 12, title: str = "") -> list[dict[str, Any]]:
+    """Draw, for each path in ``sweeps`` (from :func:`moment_arm_sweeps`), its pair with the
+    largest error against ``computeMomentArm``: OpenSim's ``computeMomentArm`` (grey), OpenSim's
+    ``-dL/dq`` (dotted, where it differs) and MuJoCo's ``-dL/dq`` (blue dashed), mm against the
+    coordinate in degrees (mm for a translational one), ``per_page`` panels a page, worst
+    first, into a multi-page PDF. Returns the pairs drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    worst: dict[str, Mapping[str, Any]] = {}
+    for r in sweeps:
+        e = r["max_error"] if np.isfinite(r["max_error"]) else np.inf
+        w = worst.get(r["muscle"])
+        if w is None or e > (w["max_error"] if np.isfinite(w["max_error"]) else np.inf):
+            worst[r["muscle"]] = r
+    rows = sorted(worst.values(), key=lambda r: -(r["max_error"] if np.isfinite(r["max_error"]) else np.inf))
+    cols = 4
+    with PdfPages(os.fspath(pdf_path)) as pdf:
+        for start in range(0, max(len(rows), 1), per_page):
+            chunk = rows[start:start + per_page]
+            nrow = max(1, math.ceil(len(chunk) / cols))
+            fig, axes = plt.subplots(nrow, cols, figsize=(11, 2.3 * nrow + 0.6), squeeze=False)
+            for ax in axes.ravel()[len(chunk):]:
+                ax.axis("off")
+            for ax, r in zip(axes.ravel(), chunk, strict=False):
+                q = np.asarray(r["q"])
+                x = q * 1e3 if r["linear"] else np.rad2deg(q)
+                k = 1.0 if r["linear"] else 1e3
+                os_ma, fd, mj = (np.asarray(r[key], dtype=float) * k for key in ("opensim", "opensim_dldq", "mujoco"))
+                ax.plot(x, os_ma, "-", lw=2.2, color="0.65", label="OpenSim computeMomentArm")
+                if np.nanmax(np.abs(fd - os_ma), initial=0.0) > 0.1:
+                    ax.plot(x, fd, ":", lw=1.2, color="k", label="OpenSim -dL/dq")
+                ax.plot(x, mj, "--", lw=1.1, color="C0", label="MuJoCo -dL/dq")
+                ax.set_title(f"{r['muscle']} / {r['coordinate']}: max {r['max_error'] * k:.2g}"
+                             f"{'' if r['linear'] else ' mm'}", fontsize=8)
+                ax.tick_params(labelsize=7)
+                ax.set_xlabel("mm" if r["linear"] else "deg", fontsize=7)
+            axes.ravel()[0].legend(fontsize=6, frameon=False)
+            fig.suptitle(title or "moment arms (mm): each path's worst coordinate, the others at their defaults",
+                         fontsize=9)
+            fig.tight_layout()
+            pdf.savefig(fig)
+            plt.close(fig)
+    return list(rows)

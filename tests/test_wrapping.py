@@ -13,7 +13,7 @@ ground (-0.2, 0, 0) to P3 on the arm (0.3, 0, 0), with either
   path that clears its object. Such a motion range is avoided here; see the README.)
 
 Expected of the converter: the same lengths as OpenSim over a 1-degree sweep of q (the conditional
-sphere stands 2 mm inside the point and rounds the bend: 0.13 mm at the sharpest bend here), and, for the fit, that it
+cylinder stands 2 mm inside the point and rounds the bend: 0.13 mm at the sharpest bend here), and, for the fit, that it
 never returns something worse than its start and that one seed gives one result.
 """
 
@@ -110,7 +110,7 @@ def test_lengths_match_opensim_over_a_sweep(pendulum):
     kind, osim_path, conv = pendulum
     qs, l_os, l_mj = _sweep(osim_path, conv.xml)
     err = np.abs(l_mj - l_os)
-    # measured: conditional 1.3e-4 m at q = -1 (the 2 mm sphere rounds the sharpest bend at P2, before
+    # measured: conditional 1.3e-4 m at q = -1 (the 2 mm cylinder rounds the sharpest bend at P2, before
     # any fit), sphere and cylinder ~1e-9 m
     assert err.max() < (2e-4 if kind == "conditional" else 1e-6), (kind, err.max(), qs[np.argmax(err)])
     assert np.max(np.abs(np.diff(l_mj))) < 1e-3 + np.max(np.abs(np.diff(l_os)))
