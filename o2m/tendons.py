@@ -59,10 +59,9 @@ CARRIER_INERTIA = 1e-14
 CARRIER_ARMATURE = 0.1
 #: Distance of a side site from a wrap geom's centre, in radii.
 SIDE_SITE_DISTANCE = 2.0
-#: Radius (m) of the wrap cylinder that stands for a ConditionalPathPoint.
-CONDITIONAL_RADIUS = 0.002
-#: Half-length (m) of that cylinder as drawn (MuJoCo wraps a cylinder as if it were infinite).
-CONDITIONAL_HALF_LENGTH = 0.005
+#: Radius (m) of the wrap sphere that stands for a ConditionalPathPoint: the tendon passes within
+#: this of the point (exactly through it when it bends there as at the reference pose).
+CONDITIONAL_RADIUS = 0.001
 #: The choices of ``path_forces`` (see the module notes).
 PATH_FORCE_MODES = ("auto", "opensim", "kinematic")
 #: ``path_forces="auto"``: a path's same-body MovingPathPoint segments are held constant
@@ -243,70 +242,130 @@ class TendonBuilder:
             j = i
             while j + 1 < len(pts) and roles[j + 1] == "conditional":
                 j += 1
-            if j > i:  # a run: keep the point that bends the path most when it is active
-                keep = [r == "site" for r in roles]
-                bends = []
+            if j > i:  # a run: keep the point whose path alone (points joined straight) is nearest OpenSim's
+                errs = []
                 for k in range(i, j + 1):
-                    _, detour, _ = self._bend(path, k, self._reference_active_values(pts[k]), keep)
-                    bends.append(detour)
-                best = i + int(np.argmax(bends))
+                    drop = set(range(i, j + 1)) - {k}
+                    errs.append(max(abs(self._straight_length(path, n, drop) / self._straight_length(path, n) - 1.0)
+                                    for n in range(len(self._pose_samples()))))
+                best = i + int(np.argmin(errs))
                 for k in range(i, j + 1):
                     if k != best:
                         roles[k] = "dropped"
                         self.b.result.notes.append(
                             f"{path.owner}: ConditionalPathPoint '{pts[k].name}' left out (it follows or precedes "
                             f"another conditional point, and MuJoCo needs a site between two wrap geoms; "
-                            f"'{pts[best].name}' kept)")
+                            f"'{pts[best].name}' kept: the straight path without the others is within "
+                            f"{100 * min(errs):.2g} % of OpenSim's over the sampled poses)")
             i = j + 1
         return roles
 
     def conditional_geom(self, path: Path, k: int, roles: list[str]) -> tuple[str, str]:
-        """The wrap cylinder (and its side site) standing for ConditionalPathPoint ``k`` of ``path``.
+        """The wrap sphere (and its side site) standing for ConditionalPathPoint ``k`` of ``path``.
 
-        The cylinder, of radius :data:`CONDITIONAL_RADIUS`, has its axis normal to the plane in
-        which the path bends at the point (the point and the straight segment between its
-        neighbouring sites, at the reference pose with its coordinate moved into its range if
-        needed) and lies just inside the point on the side of that segment, so its surface passes
-        through the point; the side site sits outside it on that side. The tendon is pulled over
-        the cylinder (through the point, or the line through it along the axis) while the point
-        lies outside the straight line, and runs straight when the line passes outside it.
-
-        A cylinder rather than a sphere: MuJoCo wraps a sphere in the plane through its centre
-        and the two sites, and takes the side site's direction in that plane; when the motion
-        turns that plane about the point (Gait2354's psoas at 78 degrees of hip adduction) the
-        side site ends up on its far side and the tendon drops the point at once (16.7 mm in a
-        1-degree step). A cylinder is wrapped in the plane normal to its axis, where the side
-        site keeps its direction, so the switch stays where the straight line crosses the
-        point (measured on Gait2354/Gait2392 after the fit: worst psoas/iliacus length error
-        15.8/23.9 % with spheres, 11.7/16.1 % with cylinders)."""
+        MuJoCo wraps a tendon round a sphere whose side site is *inside* it by making it touch
+        the sphere (``wrap_inside``): the tendon passes within the radius
+        (:data:`CONDITIONAL_RADIUS`) of the centre from whichever side, as OpenSim's path passes
+        through an active point, or runs straight when the straight segment already crosses the
+        sphere. The centre is one radius beyond the point, away from the straight segment between
+        its neighbouring sites at the reference pose, so the tendon goes through the point when
+        it bends as there. The side site sits on a carrier body that slides along ``u`` as a
+        quadratic of the point's coordinate (a joint equality, exact): inside the sphere while
+        the coordinate is in the point's range, on its surface at the range's ends and outside
+        beyond them, where MuJoCo's ordinary rule applies (no wrap while the straight segment
+        passes on the side-site side). ``u`` is the direction that leaves unwrapped the most of
+        the sampled poses where OpenSim has the point inactive (each weighted by the length the
+        point would add). So the tendon switches where OpenSim does, by OpenSim's own step. A
+        range end at the coordinate's limit is no switch (a default pose there would otherwise
+        sit on the step)."""
         point = path.points[k]
-        values = self._reference_active_values(point)
-        n_ground, _, seg_ground = self._bend(path, k, values, [r == "site" for r in roles])
-        frames = self.b.ground_frames_at(values)
-        n_body = frames[point.body].rot.T @ n_ground
-        r = CONDITIONAL_RADIUS
-        centre = point.location - r * n_body
-        side = centre + SIDE_SITE_DISTANCE * r * n_body
         cname, lo, hi = point.condition
+        r = CONDITIONAL_RADIUS
+        values = self._reference_active_values(point)
+        n_ground, _, _ = self._bend(path, k, values, [q == "site" for q in roles])
+        n_body = self.b.ground_frames_at(values)[point.body].rot.T @ n_ground
+        # the tendon touches the sphere on the straight segment's side: through the point when it bends as here
+        centre = np.asarray(point.location, dtype=float) + r * n_body
+        u = self._off_direction(path, k, roles, centre)
         gname = self._unique(f"{path.owner}-{point.name}_cond" if not point.name.startswith(path.owner)
                              else f"{point.name}_cond")
-        axis = np.cross(n_body, frames[point.body].rot.T @ seg_ground)  # normal to the bend plane
-        x = self._in_world(point.body, Transform(pos=centre)) @ Transform(_rotation_taking_z_to(axis))
-        quat = np.asarray(matrix_to_quat(x.rot), dtype=float)
-        self.b.bodies[point.body].add_geom(name=gname, type=mujoco.mjtGeom.mjGEOM_CYLINDER,
-                                           size=[r, CONDITIONAL_HALF_LENGTH, 0], pos=x.pos, quat=quat,
+        pos = self._in_world(point.body, Transform(pos=centre)).pos
+        self.b.bodies[point.body].add_geom(name=gname, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r, 0, 0], pos=pos,
                                            contype=0, conaffinity=0, group=3, density=0, rgba=[0.9, 0.6, 0.2, 0.5])
-        self.exact[("geom", gname)] = {"pos": x.pos, "quat": quat, "size": np.array([r, CONDITIONAL_HALF_LENGTH])}
+        self.exact[("geom", gname)] = {"pos": pos, "size": np.array([r])}
+        base = self.b.drivers[cname].base
+        kind = self.b.coord_joint[base][1].kind if base in self.b.coord_joint else "rotation"
+        clo, chi = self.b.fit_range(base, kind)
+        slo, shi = lo, hi  # where the switch is
+        if base == cname:  # a range end at (or beyond) the coordinate's limit never switches there
+            tol = 1e-6 * max(1.0, chi - clo)
+            slo = lo - (hi - lo) if lo <= clo + tol else lo
+            shi = hi + (hi - lo) if hi >= chi - tol else hi
+        half = 0.5 * (shi - slo)
+        mid = 0.5 * (shi + slo)
+
+        def slide(x, r=r, mid=mid, half=half):  # r at slo and shi, 0 between them, beyond r outside
+            return r * ((np.asarray(x, dtype=float) - mid) / half) ** 2
+
+        ref = float(slide(self.b.ref[cname]))
+        pos = self._in_world(point.body, Transform(pos=centre + ref * u)).pos  # the side site at slide(q) along u
+        body = self.b.bodies[point.body].add_body(name=self._unique(f"{gname}_carrier"), pos=pos)
+        self.b.exact[("body", body.name)] = {"pos": pos, "quat": np.array([1.0, 0, 0, 0])}
+        body.explicitinertial = True
+        body.mass = CARRIER_MASS
+        body.fullinertia = [CARRIER_INERTIA, CARRIER_INERTIA, CARRIER_INERTIA, 0, 0, 0]
+        self.b.exact[("inertial", body.name)] = {"pos": np.zeros(3), "mass": CARRIER_MASS,
+                                                 "fullinertia": np.array(body.fullinertia)}
+        axis = self._in_world(point.body, Transform(pos=u)).pos if point.body == "ground" else u
+        jname = self._unique(f"{gname}_switch")
+        body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=ref, armature=CARRIER_ARMATURE)
+        self.b.exact[("joint", jname)] = {"axis": np.asarray(axis, dtype=float), "pos": np.zeros(3), "ref": ref}
+        rec = JointRecord(jname, "slide", path.owner, f"{point.name}/switch", None, None, "coordinate")
+        self.b.couple(rec, self.b.drivers[cname].then(slide), ref, point.element)
+        self.b.result.joints.append(rec)
         sname = self._unique(f"{gname}_side")
-        spos = self._in_world(point.body, Transform(pos=side)).pos
-        self.b.bodies[point.body].add_site(name=sname, pos=spos, size=[0.001, 0, 0], group=5)
-        self.b.exact[("site", sname)] = {"pos": spos}
+        body.add_site(name=sname, pos=[0, 0, 0], size=[0.001, 0, 0], group=5)
         self.b.result.notes.append(
             f"{path.owner}: ConditionalPathPoint '{point.name}' (active for '{cname}' in [{lo:g}, {hi:g}]) is a "
-            f"wrap cylinder of radius {r:g} m at the point, normal to the path's bend there: the tendon passes "
-            f"through it while it lies outside the straight line between its neighbours")
+            f"wrap sphere of radius {r:g} m on the point whose side site '{cname}' moves out of it beyond the range")
         self.path_geoms.append(PathGeom(path.owner, gname, sname, "ConditionalPathPoint", point.name, point.body))
         return gname, sname
+
+    def _off_direction(self, path: Path, k: int, roles: list[str], centre: np.ndarray) -> np.ndarray:
+        """Unit direction (body frame of point ``k``) from the point towards which the straight
+        segment between its neighbouring sites passes in the sampled poses where OpenSim has the
+        point inactive (each pose weighted by the length the point would add there)."""
+        pts = path.points
+        keep = [r == "site" for r in roles]
+        before = next(i for i in range(k - 1, -1, -1) if keep[i])
+        after = next(i for i in range(k + 1, len(pts)) if keep[i])
+        point = pts[k]
+        feet, weights = [], []
+        for j, (_, values) in enumerate(self._pose_samples()):
+            if self._active(point, values):
+                continue
+            frames = self._sample_frames(j)
+            to_body = frames[point.body].inverse()
+            a = to_body.apply(frames[pts[before].body].apply(self.location_at(pts[before], values)))
+            b = to_body.apply(frames[pts[after].body].apply(self.location_at(pts[after], values)))
+            ab = b - a
+            t = float(np.clip((centre - a) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0))
+            feet.append(a + t * ab - centre)
+            weights.append(float(np.linalg.norm(centre - a) + np.linalg.norm(b - centre) - np.linalg.norm(ab)))
+        values = self._reference_active_values(point)
+        n_ground, _, _ = self._bend(path, k, values, keep)
+        n_body = self.b.ground_frames_at(values)[point.body].rot.T @ n_ground
+        if not feet:
+            return -n_body
+        f, w = np.array(feet), np.array(weights)
+        m = 2000
+        i = np.arange(m) + 0.5
+        phi, theta = np.arccos(1 - 2 * i / m), np.pi * (1 + 5**0.5) * i
+        cand = np.vstack([-n_body, np.c_[np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)]])
+        cost = (((cand @ f.T) < 0) * w[None, :]).sum(axis=1)
+        best = np.flatnonzero(cost <= cost.min() + 1e-9)
+        u = cand[best[np.argmax(cand[best] @ -n_body)]]
+        return u / np.linalg.norm(u)
 
     def add_point(self, path: Path, point: PathPoint) -> str:
         """Add the site of ``point`` (a path point, a moving point, or a conditional point kept
@@ -486,12 +545,13 @@ class TendonBuilder:
             self._frames[k] = self.b.ground_frames_at(self._pose_samples()[k][1])
         return self._frames[k]
 
-    def _straight_length(self, path: Path, k: int) -> float:
-        """Length (m) of ``path`` at pose sample ``k`` with its active points joined straight
-        (a lower bound of OpenSim's length, which wrapping only lengthens)."""
+    def _straight_length(self, path: Path, k: int, drop: set[int] | frozenset[int] = frozenset()) -> float:
+        """Length (m) of ``path`` at pose sample ``k`` with its active points (but those in
+        ``drop``) joined straight (a lower bound of OpenSim's length, which wrapping only lengthens)."""
         values = self._pose_samples()[k][1]
         frames = self._sample_frames(k)
-        pts = [frames[p.body].apply(self.location_at(p, values)) for p in path.points if self._active(p, values)]
+        pts = [frames[p.body].apply(self.location_at(p, values)) for i, p in enumerate(path.points)
+               if i not in drop and self._active(p, values)]
         return float(sum(np.linalg.norm(b - a) for a, b in zip(pts[:-1], pts[1:], strict=True)))
 
     def plan_path_forces(self, path: Path, roles: list[str], site_point: list[int],

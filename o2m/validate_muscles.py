@@ -71,6 +71,8 @@ LEN_PCT = 1.0
 MA_MEDIAN_MM = 0.5
 MA_P95_MM = 2.0
 MA_MAX_MM = 5.0
+#: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
+DLDQ_CONSISTENCY = 1e-3
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
 SPIKE_LINEAR_STEP = 1e-3
@@ -391,6 +393,13 @@ class _Pair:
         s = linear_step if coordinate.getMotionType() == _TRANSLATIONAL else step
         n = max(int(math.ceil((hi - lo) / s - 1e-9)) + 1, 2)
         return np.linspace(lo, hi, n)
+
+
+def _nan_rms(x: np.ndarray) -> float:
+    """RMS of the finite values of ``x`` (NaN when there are none)."""
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
 def opensim_spikes(pair: _Pair, values: Mapping[str, float], muscles: Sequence[int],
@@ -747,15 +756,20 @@ def compare_muscles(
     dldq_cache: dict[tuple[int, int], np.ndarray] = {}
 
     def os_dldq(k: int, j: int) -> np.ndarray:
-        """OpenSim's own -dL/dq of every path at moment-arm pose k about coordinate j."""
+        """OpenSim's own -dL/dq of every path at moment-arm pose k about coordinate j: central
+        differences with steps of 10 and 100 FD_STEP, NaN where the two differ by more than
+        DLDQ_CONSISTENCY (a step of OpenSim's own length, e.g. a conditional point switching,
+        or an assembly that had to relax its tolerance, inside the step)."""
         if (k, j) not in dldq_cache:
             values = pair.os_indep_values(ma_states[k])
             c = pair.indep_names[j]
-            h = FD_STEP * 10
             try:
-                up = pair.os_lengths(pair.os_state({**values, c: values[c] + h}, assemble=bool(pair.dependent)))
-                dn = pair.os_lengths(pair.os_state({**values, c: values[c] - h}, assemble=bool(pair.dependent)))
-                dldq_cache[(k, j)] = -(up - dn) / (2 * h)
+                est = []
+                for h in (FD_STEP * 10, FD_STEP * 100):
+                    up = pair.os_lengths(pair.os_state({**values, c: values[c] + h}, assemble=bool(pair.dependent)))
+                    dn = pair.os_lengths(pair.os_state({**values, c: values[c] - h}, assemble=bool(pair.dependent)))
+                    est.append(-(up - dn) / (2 * h))
+                dldq_cache[(k, j)] = np.where(np.abs(est[0] - est[1]) <= DLDQ_CONSISTENCY, est[0], np.nan)
             except Exception:
                 dldq_cache[(k, j)] = np.full(nm, np.nan)
         return dldq_cache[(k, j)]
@@ -778,8 +792,8 @@ def compare_muscles(
                 max=float(np.max(np.abs(d))),
                 max_abs_opensim=float(np.max(np.abs(r_os))),
                 max_abs_mujoco=float(np.max(np.abs(r_mj))),
-                rms_vs_dldq=float(np.sqrt(np.mean((r_mj - r_fd) ** 2))),
-                opensim_compute_vs_dldq=float(np.sqrt(np.mean((r_os - r_fd) ** 2))),
+                rms_vs_dldq=_nan_rms(r_mj - r_fd),
+                opensim_compute_vs_dldq=_nan_rms(r_os - r_fd),
             )
             moment_arms[name][cname] = e
             rms_all.append(e.rms)
@@ -1001,11 +1015,11 @@ def moment_arm_sweeps(
     """For every OpenSim path force with a MuJoCo tendon and every independent coordinate it
     spans, sweep the coordinate over its range (``n`` values, the others at their defaults) and
     record OpenSim's ``computeMomentArm``, OpenSim's own ``-dL/dq`` (central differences,
-    10 * :data:`FD_STEP`) and MuJoCo's ``-dL/dq`` (metres; dimensionless for a translational
-    coordinate). Returns one JSON-safe dict per pair: ``{"muscle", "coordinate", "linear",
-    "q", "opensim", "opensim_dldq", "mujoco", "max_error", "max_error_vs_dldq"}`` (the last two:
-    max |MuJoCo - OpenSim| over the sweep, NaN-free values only), largest ``max_error`` first.
-    OpenSim values at steps that fail to assemble are NaN."""
+    10 * :data:`FD_STEP`, NaN where a step 10 times larger disagrees) and MuJoCo's ``-dL/dq``
+    (metres; dimensionless for a translational coordinate). Returns one JSON-safe dict per pair:
+    ``{"muscle", "coordinate", "linear", "q", "opensim", "opensim_dldq", "mujoco", "max_error",
+    "max_error_vs_dldq"}`` (the last two: max |MuJoCo - OpenSim| over the sweep, NaN-free values
+    only), largest ``max_error`` first. OpenSim values at steps that fail to assemble are NaN."""
     pair = _Pair(osim_path, mjcf_path, assembly_accuracy)
     spans = pair.spanned()
     names = [nm for nm, _, _ in pair.matched]
@@ -1028,9 +1042,12 @@ def moment_arm_sweeps(
                 values = pair.os_indep_values(st)
                 r_os[k] = [pair.matched[i][2].computeMomentArm(st, c) for i in users]
                 asm = bool(pair.dependent)
-                up = pair.os_lengths(pair.os_state({**values, cname: values[cname] + h}, assemble=asm))
-                dn = pair.os_lengths(pair.os_state({**values, cname: values[cname] - h}, assemble=asm))
-                r_fd[k] = -(up - dn)[users] / (2 * h)
+                est = []
+                for step in (h, 10 * h):  # two steps: a step of OpenSim's own length inside is no moment arm
+                    up = pair.os_lengths(pair.os_state({**values, cname: values[cname] + step}, assemble=asm))
+                    dn = pair.os_lengths(pair.os_state({**values, cname: values[cname] - step}, assemble=asm))
+                    est.append(-(up - dn)[users] / (2 * step))
+                r_fd[k] = np.where(np.abs(est[0] - est[1]) <= DLDQ_CONSISTENCY, est[0], np.nan)
             except Exception:  # assembly failure: OpenSim NaN, MuJoCo at the requested value
                 pass
             ma = mujoco_moment_arms(pair.mj_model, pair.mj_data, values, [cname], plan=pair.plan)

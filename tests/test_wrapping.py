@@ -29,6 +29,7 @@ from scipy.optimize import brentq
 
 from o2m.convert import convert
 from o2m.tendons import PathGeom
+from o2m.validate import pose_mujoco
 from o2m.validate_muscles import compare_muscles, sweep_jumps
 from o2m.wrapfit import fit_paths
 
@@ -99,8 +100,7 @@ def _sweep(osim_path, xml):
         coord.setValue(state, float(q))
         model.realizePosition(state)
         l_os.append(pa.getLength(state))
-        d.qpos[m.joint("q").qposadr[0]] = q
-        mujoco.mj_kinematics(m, d)
+        pose_mujoco(m, d, {"q": float(q)})  # joints driven by equalities (a conditional point's switch) follow
         mujoco.mj_tendon(m, d)
         l_mj.append(d.ten_length[m.tendon("m").id])
     return qs, np.array(l_os), np.array(l_mj)
