@@ -1,7 +1,7 @@
 """Fitting each tendon's wrap geoms and side sites to OpenSim's lengths and moment arms.
 
 Where a converted path only approximates OpenSim's (an ellipsoid wrapped as a sphere or a
-cylinder, a conditional point made a small wrap sphere, MuJoCo's side-site rule for which way
+cylinder, a wrap placed on one path segment, MuJoCo's side-site rule for which way
 round a geom the tendon goes), :func:`fit_paths` adjusts, per tendon, the position and radius of
 each of its wrap geoms and the position of each side site so that MuJoCo's tendon length and
 moment arms match OpenSim's over sampled poses:
@@ -153,25 +153,16 @@ class _Evaluator:
         self.side0 = self.m.site_pos[self.sid].copy()
         self.cyl = [int(self.m.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_CYLINDER) for g in self.gid]
         self.scale = np.maximum(self.rad0, MIN_SCALE)
-        # a conditional point's sphere moves with its switch side site and keeps its radius
-        self.via = [kind == "ConditionalPathPoint" for kind in task.kinds]
-        self.free = np.concatenate([[True] * 3 + [not v] * 4 for v in self.via]).astype(bool) \
-            if self.gid else np.zeros(0, dtype=bool)
-        self.n_params = int(self.free.sum())
+        self.n_params = 7 * len(self.gid)
         self.evaluations = 0
 
     def values(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Geom positions, radii and side-site positions (body frames) of parameters ``theta``."""
-        full = np.zeros(7 * len(self.gid))
-        full[self.free] = np.asarray(theta, dtype=float)
-        th = full.reshape(len(self.gid), 7)
+        th = np.asarray(theta, dtype=float).reshape(len(self.gid), 7)
         pos = self.pos0 + self.scale[:, None] * th[:, 0:3]
         rad = self.rad0 * np.exp(np.clip(th[:, 3], -3.0, 3.0))
         side = self.side0 + self.scale[:, None] * th[:, 4:7]
         for k, g in enumerate(self.gid):  # keep each side site outside its geom (its axis, for a cylinder)
-            if self.via[k]:  # its side site is a switch inside it (on a carrier framed as the body)
-                side[k] = self.side0[k] + (pos[k] - self.pos0[k])
-                continue
             rot = np.zeros(9)
             mujoco.mju_quat2Mat(rot, self.m.geom_quat[g])
             rot = rot.reshape(3, 3)
@@ -211,7 +202,7 @@ class _Evaluator:
             th[k, 3] = np.log(radius / self.rad0[k])
             th[k, 4:7] = (side - self.side0[k]) / self.scale[k]
             changed = True
-        return np.clip(th.ravel()[self.free], -4.0, 4.0) if changed else None
+        return np.clip(th.ravel(), -4.0, 4.0) if changed else None
 
     def apply(self, theta: np.ndarray) -> None:
         pos, rad, side = self.values(theta)
