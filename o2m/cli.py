@@ -30,7 +30,7 @@ def cmd_convert(a: argparse.Namespace) -> int:
     from .convert import convert
 
     osim, geometry = _osim_path(a.model, a.geometry)
-    result = convert(osim, a.output, geometry_dirs=geometry)
+    result = convert(osim, a.output, geometry_dirs=geometry, path_forces=a.path_forces)
     print(result.report.summary() if a.verbose else
           f"wrote {result.xml} ({result.report.seconds:.2f} s; {len(result.report.approximations)} "
           f"approximations, {len(result.report.skipped)} elements skipped; see "
@@ -195,6 +195,11 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("-o", "--output", required=True, help="output folder")
     c.add_argument("--geometry", action="append", default=[], metavar="DIR", help="extra folder to search for meshes")
     c.add_argument("-v", "--verbose", action="store_true", help="print the whole conversion report")
+    c.add_argument("--path-forces", choices=["auto", "opensim", "kinematic"], default="auto",
+                   help="for a MovingPathPoint next to a point of its own body (along which OpenSim applies no "
+                        "tension): tendon = OpenSim's length ('kinematic'), OpenSim's force transmission "
+                        "('opensim'), or per muscle by how much holding the segment changes its length ('auto', "
+                        "default)")
     c.set_defaults(func=cmd_convert)
     v = sub.add_parser("validate", help="compare a converted model with OpenSim over random poses")
     v.add_argument("osim")

@@ -4,12 +4,36 @@
 * A MovingPathPoint is a site on a small child body that slides along its body's axes; each
   slide follows its coordinate through a joint equality (exact when the location function is
   linear, else a quartic fit whose worst error the report records).
-* A ConditionalPathPoint is approximated as always active (MuJoCo sites cannot switch); the
-  report names it, and :mod:`o2m.validate_muscles` measures the length error this leaves.
-* Wrap objects become wrap geoms: spheres and cylinders as they are; an ellipsoid as the sphere
-  or cylinder nearest to it; a torus is left out. Each is placed on the path segment that
-  passes closest to it at the reference pose, with a side site on the side that segment passes
-  (MuJoCo 4.0: the tendon wraps the way the straight line through the side site goes).
+* A ConditionalPathPoint becomes a small wrap cylinder, its axis normal to the path's bend
+  there, whose surface passes through the point, with a side site outside it (see
+  :meth:`TendonBuilder.conditional_geom`). MuJoCo 4.0
+  wraps a tendon round a geom whenever the straight segment cuts it *or passes on the side
+  opposite the side site*, and then goes round on the side-site side; so the tendon is pulled
+  through the point exactly while the point lies outside the straight line between its
+  neighbours (OpenSim's via point makes the path bend there) and runs straight otherwise. The
+  switch is geometric, depends on every coordinate, and leaves the length continuous (OpenSim's
+  own length jumps where its coordinate leaves the range; the README gives by how much).
+  Consecutive conditional points between the same two sites keep the one that bends the path
+  most (MuJoCo needs a site between two wrap geoms); the report names the others.
+* Wrap objects become wrap geoms, one per path that uses them (so :mod:`o2m.wrapfit` can fit
+  each path's own): spheres and cylinders as they are; an ellipsoid as the sphere or cylinder
+  nearest to it; a torus is left out. Each is placed on the path segment (within the wrap's
+  OpenSim range) that passes closest to it at the reference pose, with a side site on the side
+  that segment passes or that the quadrant names (MuJoCo 4.0: the tendon wraps the way the
+  straight path through the side site goes).
+* Path forces (``path_forces``). OpenSim 4.6 applies a path's tension only along segments whose
+  two points are on different bodies (``GeometryPath::addInEquivalentForces`` skips a segment on
+  one body, and with it the generalized force of a MovingPathPoint moving along it), while its
+  ``getLength`` sums every segment. Where a MovingPathPoint sits next to a point of its own body,
+  OpenSim's dynamic moment arm (``computeMomentArm``) is therefore not ``-dL/dq`` of its length.
+  A MuJoCo tendon has one length for both, so each such path chooses: ``"kinematic"`` (the tendon
+  is OpenSim's length; its moment arm is ``-dL/dq``) or ``"opensim"`` (the same-body segments
+  become a MuJoCo pulley branch of constant length, the midrange of their summed length over the
+  sampled poses, so the tendon's moment arm is OpenSim's ``computeMomentArm`` and its length
+  OpenSim's within half the segments' variation). ``"auto"`` (default) takes ``"opensim"`` for
+  a path whose same-body segments vary by at most :data:`PATH_FORCES_AUTO_VARIATION` of its
+  length, else ``"kinematic"``. Each choice is recorded with the length and moment-arm
+  differences it implies (:attr:`TendonBuilder.path_forces`).
 * Each muscle becomes a MuJoCo muscle actuator on its tendon, named as the muscle.
 """
 
@@ -22,7 +46,6 @@ import numpy as np
 
 from .mjcf import Approximation, JointRecord, MjcfBuilder
 from .paths import MUSCLE_TYPES, Path, PathPoint, WrapObject
-from .skeleton import Skipped
 from .transforms import OSIM_TO_MJ, Transform, matrix_to_quat
 
 #: A path-point carrier body: mass (kg) and inertia (kg m²) just above what MuJoCo accepts, so the
@@ -36,6 +59,20 @@ CARRIER_INERTIA = 1e-14
 CARRIER_ARMATURE = 0.1
 #: Distance of a side site from a wrap geom's centre, in radii.
 SIDE_SITE_DISTANCE = 2.0
+#: Radius (m) of the wrap sphere that stands for a ConditionalPathPoint: the tendon passes within
+#: this of the point (exactly through it when it bends there as at the reference pose).
+CONDITIONAL_RADIUS = 0.001
+#: The choices of ``path_forces`` (see the module notes).
+PATH_FORCE_MODES = ("auto", "opensim", "kinematic")
+#: ``path_forces="auto"``: a path's same-body MovingPathPoint segments are held constant
+#: ("opensim") when their summed length varies (peak to peak, over the sampled poses) by at most
+#: this fraction of the path's shortest length, so that the tendon length stays within half that
+#: (1 %, the length target) of OpenSim's; else the tendon keeps them ("kinematic").
+PATH_FORCES_AUTO_VARIATION = 0.02
+#: Random poses (seeded, plus the reference pose) over which a path's same-body segments are measured.
+PATH_FORCE_POSES = 200
+#: Central-difference step (rad or m) of the moment-arm difference the two choices imply.
+PATH_FORCE_FD_STEP = 1e-6
 
 
 @dataclass
@@ -45,15 +82,76 @@ class _PlacedWrap:
     sidesite: str
 
 
+@dataclass
+class PathGeom:
+    """A wrap geom of one tendon (MuJoCo names), for :mod:`o2m.wrapfit`: ``kind`` is the OpenSim
+    element it stands for (``WrapSphere``, ``WrapCylinder`` or ``WrapEllipsoid``; a
+    ConditionalPathPoint's sphere is not fitted), ``source`` its OpenSim name and ``body`` the OpenSim body it is on."""
+
+    tendon: str
+    geom: str
+    sidesite: str
+    kind: str
+    source: str
+    body: str = ""
+
+
+@dataclass
+class PathForceRecord:
+    """What ``path_forces`` chose for one path with same-body MovingPathPoint segments.
+
+    ``segments``: the OpenSim point pairs (one body, at least one moving) OpenSim applies no
+    tension along; ``mode``: ``"opensim"`` (held at ``held_length`` m in a pulley branch) or
+    ``"kinematic"`` (kept in the tendon); ``variation_mm``/``variation_pct``: peak-to-peak change
+    of their summed length over the sampled poses (percent of ``shortest_mm``, a lower bound of
+    the path's length: its points joined straight); ``length_error_mm``/``length_error_pct``: the
+    tendon length error the choice implies against OpenSim's ``getLength`` (half the variation for
+    ``"opensim"``, 0 for ``"kinematic"``); ``moment_arm_mm``: per independent coordinate, the
+    largest difference between ``computeMomentArm`` and ``-dL/dq`` that the segments cause: the
+    moment-arm error against ``computeMomentArm`` for ``"kinematic"`` and against ``-dL/dq`` for
+    ``"opensim"``; ``blocked``: same-body segments kept because a wrap or conditional point of
+    another body acts on them."""
+
+    path: str
+    kind: str
+    mode: str
+    requested: str
+    segments: list[tuple[str, str]]
+    held_length: float
+    variation_mm: float
+    variation_pct: float
+    shortest_mm: float
+    length_error_mm: float
+    length_error_pct: float
+    moment_arm_mm: dict[str, float]
+    blocked: list[tuple[str, str]]
+
+
 class TendonBuilder:
     """Adds the paths of a skeleton to an :class:`MjcfBuilder`'s spec."""
 
-    def __init__(self, builder: MjcfBuilder, wraps: dict[str, WrapObject]):
+    def __init__(self, builder: MjcfBuilder, wraps: dict[str, WrapObject], path_forces: str = "auto"):
+        if path_forces not in PATH_FORCE_MODES:
+            raise ValueError(f"path_forces must be one of {', '.join(PATH_FORCE_MODES)}, not {path_forces!r}")
+        self.path_forces_mode = path_forces
+        #: One :class:`PathForceRecord` per path with same-body MovingPathPoint segments.
+        self.path_forces: list[PathForceRecord] = []
+        #: Paths whose same-body segments are held ("opensim"): name -> {"pairs": [(OpenSim point,
+        #: point)], "length": held length (m)}, for :mod:`o2m.wrapfit`'s targets.
+        self.held: dict[str, dict] = {}
+        self._samples: list[tuple[dict[str, float], dict[str, float]]] | None = None
+        self._frames: dict[int, dict[str, Transform]] = {}
         self.b = builder
         self.spec = builder.spec
         self.wraps = wraps
         self.geoms: dict[str, str | None] = {}  # wrap object -> MuJoCo geom name (None: not converted)
         self.names: set[str] = set()
+        #: Exact attribute values of the geoms added here, by ("geom", name) (see :func:`restore_geom_precision`).
+        self.exact: dict[tuple[str, str], dict[str, np.ndarray]] = {}
+        #: Every wrap geom of every tendon, in the order added.
+        self.path_geoms: list[PathGeom] = []
+        #: geom name -> (its frame in its OpenSim body, MuJoCo kind, radius)
+        self.geom_frames: dict[str, tuple[Transform, str, float]] = {}
 
     def _unique(self, name: str) -> str:
         out, k = name, 1
@@ -75,59 +173,207 @@ class TendonBuilder:
             loc[i] += float(fn(np.array([values[cname]]))[0]) - ref
         return loc
 
-    def conditional_motion(self, point: PathPoint, points: list[PathPoint]) -> dict[int, tuple]:
-        """Location functions that reproduce a ConditionalPathPoint's switching.
-
-        Inside its range the point stays where it is; outside, it moves to the closest point of
-        the straight segment between the nearest points before and after it that are active
-        then, where it leaves the path length unchanged. Tabulated over the coordinate's range
-        with the other coordinates at the reference pose."""
+    def _active(self, point: PathPoint, values: dict[str, float]) -> bool:
+        if point.condition is None:
+            return True
         cname, lo, hi = point.condition
-        kind = self.b.coord_joint[cname][1].kind if cname in self.b.coord_joint else "rotation"
-        flo, fhi = self.b.fit_range(cname, kind)
-        grid = np.linspace(min(flo, lo), max(fhi, hi), 241)
-        k0 = points.index(point)
-        table = np.empty((grid.size, 3))
-        for k, q in enumerate(grid):
-            if lo <= q <= hi:
-                table[k] = point.location
+        return lo <= values[cname] <= hi
+
+    def _reference_active_values(self, point: PathPoint) -> dict[str, float]:
+        """Coordinate values at the reference pose, with a conditional point's coordinate moved
+        into the point's active range when it is outside it (to the middle of the part of that
+        range inside the coordinate's range)."""
+        cname, lo, hi = point.condition
+        if lo <= self.b.ref[cname] <= hi:
+            return self.b.coordinate_values()
+        base = self.b.drivers[cname].base
+        kind = self.b.coord_joint[base][1].kind if base in self.b.coord_joint else "rotation"
+        rlo, rhi = self.b.fit_range(base, kind)
+        a, b = max(lo, rlo), min(hi, rhi)
+        return self.b.coordinate_values({base: 0.5 * (a + b) if a <= b else 0.5 * (lo + hi)})
+
+    def _bend(self, path: Path, k: int, values: dict[str, float], keep: list[bool]
+              ) -> tuple[np.ndarray, float, np.ndarray]:
+        """Unit direction (ground) from the straight segment between the kept neighbours of point
+        ``k`` to the point, the length (m) the point adds to the path, in pose ``values``, and
+        the unit direction of that segment."""
+        pts = path.points
+        frames = self.b.ground_frames_at(values)
+
+        def world(p: PathPoint) -> np.ndarray:
+            return frames[p.body].apply(self.location_at(p, values))
+
+        before = next(p for p, kp in zip(pts[k - 1::-1], keep[k - 1::-1], strict=True) if kp)
+        after = next(p for p, kp in zip(pts[k + 1:], keep[k + 1:], strict=True) if kp)
+        a, p, c = world(before), world(pts[k]), world(after)
+        ac = c - a
+        t = float(np.clip((p - a) @ ac / max(ac @ ac, 1e-18), 0.0, 1.0))
+        off = p - (a + t * ac)
+        detour = float(np.linalg.norm(p - a) + np.linalg.norm(c - p) - np.linalg.norm(ac))
+        n = float(np.linalg.norm(off))
+        if n < 1e-9:  # on the straight line: any direction perpendicular to it
+            helper = np.eye(3)[int(np.argmin(np.abs(ac)))]
+            off = np.cross(ac, helper)
+            n = float(np.linalg.norm(off))
+        return off / n, detour, ac / max(float(np.linalg.norm(ac)), 1e-18)
+
+    def conditional_roles(self, path: Path) -> list[str]:
+        """For each point of ``path``: ``"site"`` (always on the path), ``"conditional"`` (a
+        ConditionalPathPoint made a wrap cylinder) or ``"dropped"`` (a conditional point left out:
+        its coordinate is locked outside its range, or it is not the one of a run of consecutive
+        conditional points that bends the path most). First and last points stay sites."""
+        pts = path.points
+        roles = []
+        for i, p in enumerate(pts):
+            if p.condition is None or i in (0, len(pts) - 1):
+                if p.condition is not None:
+                    self.b.result.notes.append(f"{path.owner}: ConditionalPathPoint '{p.name}' ends the path; "
+                                               f"kept always active")
+                roles.append("site")
+            elif self._fixed(p.condition[0]):
+                roles.append("site" if self._active(p, self.b.coordinate_values()) else "dropped")
+            else:
+                roles.append("conditional")
+        i = 0
+        while i < len(pts):
+            if roles[i] != "conditional":
+                i += 1
                 continue
-            values = self.b.coordinate_values({cname: q})
+            j = i
+            while j + 1 < len(pts) and roles[j + 1] == "conditional":
+                j += 1
+            if j > i:  # a run: keep the point whose path alone (points joined straight) is nearest OpenSim's
+                errs = []
+                for k in range(i, j + 1):
+                    drop = set(range(i, j + 1)) - {k}
+                    errs.append(max(abs(self._straight_length(path, n, drop) / self._straight_length(path, n) - 1.0)
+                                    for n in range(len(self._pose_samples()))))
+                best = i + int(np.argmin(errs))
+                for k in range(i, j + 1):
+                    if k != best:
+                        roles[k] = "dropped"
+                        self.b.result.notes.append(
+                            f"{path.owner}: ConditionalPathPoint '{pts[k].name}' left out (it follows or precedes "
+                            f"another conditional point, and MuJoCo needs a site between two wrap geoms; "
+                            f"'{pts[best].name}' kept: the straight path without the others is within "
+                            f"{100 * min(errs):.2g} % of OpenSim's over the sampled poses)")
+            i = j + 1
+        return roles
 
-            on = [p.condition is None or p.condition[1] <= values[p.condition[0]] <= p.condition[2] for p in points]
-            before = next((p for p, a in zip(points[k0 - 1::-1], on[k0 - 1::-1], strict=True) if a), None) \
-                if k0 > 0 else None
-            after = next((p for p, a in zip(points[k0 + 1:], on[k0 + 1:], strict=True) if a), None)
-            if before is None or after is None:
-                raise self.b.doc.error(point.element, "is a ConditionalPathPoint with no active point on one side")
-            frames = self.b.ground_frames_at(values)
+    def conditional_geom(self, path: Path, k: int, roles: list[str]) -> tuple[str, str]:
+        """The wrap sphere (and its side site) standing for ConditionalPathPoint ``k`` of ``path``.
 
-            def world(p: PathPoint) -> np.ndarray:
-                return frames[p.body].apply(self.location_at(p, values))  # noqa: B023
+        MuJoCo wraps a tendon round a sphere whose side site is *inside* it by making it touch
+        the sphere (``wrap_inside``): the tendon passes within the radius
+        (:data:`CONDITIONAL_RADIUS`) of the centre from whichever side, as OpenSim's path passes
+        through an active point, or runs straight when the straight segment already crosses the
+        sphere. The centre is one radius beyond the point, away from the straight segment between
+        its neighbouring sites at the reference pose, so the tendon goes through the point when
+        it bends as there. The side site sits on a carrier body that slides along ``u`` as a
+        quadratic of the point's coordinate (a joint equality, exact): inside the sphere while
+        the coordinate is in the point's range, on its surface at the range's ends and outside
+        beyond them, where MuJoCo's ordinary rule applies (no wrap while the straight segment
+        passes on the side-site side). ``u`` is the direction that leaves unwrapped the most of
+        the sampled poses where OpenSim has the point inactive (each weighted by the length the
+        point would add). So the tendon switches where OpenSim does, by OpenSim's own step. A
+        range end at the coordinate's limit is no switch (a default pose there would otherwise
+        sit on the step)."""
+        point = path.points[k]
+        cname, lo, hi = point.condition
+        r = CONDITIONAL_RADIUS
+        values = self._reference_active_values(point)
+        n_ground, _, _ = self._bend(path, k, values, [q == "site" for q in roles])
+        n_body = self.b.ground_frames_at(values)[point.body].rot.T @ n_ground
+        # the tendon touches the sphere on the straight segment's side: through the point when it bends as here
+        centre = np.asarray(point.location, dtype=float) + r * n_body
+        u = self._off_direction(path, k, roles, centre)
+        gname = self._unique(f"{path.owner}-{point.name}_cond" if not point.name.startswith(path.owner)
+                             else f"{point.name}_cond")
+        pos = self._in_world(point.body, Transform(pos=centre)).pos
+        self.b.bodies[point.body].add_geom(name=gname, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r, 0, 0], pos=pos,
+                                           contype=0, conaffinity=0, group=3, density=0, rgba=[0.9, 0.6, 0.2, 0.5])
+        self.exact[("geom", gname)] = {"pos": pos, "size": np.array([r])}
+        base = self.b.drivers[cname].base
+        kind = self.b.coord_joint[base][1].kind if base in self.b.coord_joint else "rotation"
+        clo, chi = self.b.fit_range(base, kind)
+        slo, shi = lo, hi  # where the switch is
+        if base == cname:  # a range end at (or beyond) the coordinate's limit never switches there
+            tol = 1e-6 * max(1.0, chi - clo)
+            slo = lo - (hi - lo) if lo <= clo + tol else lo
+            shi = hi + (hi - lo) if hi >= chi - tol else hi
+        half = 0.5 * (shi - slo)
+        mid = 0.5 * (shi + slo)
 
-            a, c = world(before), world(after)
-            ab = c - a
-            # inactive points between the same two active ones keep their order along the segment
-            t = 0.0
-            for p in points[points.index(before) + 1:k0 + 1]:
-                t = max(t, float(np.clip((world(p) - a) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0)))
-            table[k] = frames[point.body].inverse().apply(a + t * ab)
-        return {i: (cname, lambda x, i=i: np.interp(x, grid, table[:, i]))
-                for i in range(3) if np.ptp(table[:, i]) > 1e-9}
+        def slide(x, r=r, mid=mid, half=half):  # r at slo and shi, 0 between them, beyond r outside
+            return r * ((np.asarray(x, dtype=float) - mid) / half) ** 2
+
+        ref = float(slide(self.b.ref[cname]))
+        pos = self._in_world(point.body, Transform(pos=centre + ref * u)).pos  # the side site at slide(q) along u
+        body = self.b.bodies[point.body].add_body(name=self._unique(f"{gname}_carrier"), pos=pos)
+        self.b.exact[("body", body.name)] = {"pos": pos, "quat": np.array([1.0, 0, 0, 0])}
+        body.explicitinertial = True
+        body.mass = CARRIER_MASS
+        body.fullinertia = [CARRIER_INERTIA, CARRIER_INERTIA, CARRIER_INERTIA, 0, 0, 0]
+        self.b.exact[("inertial", body.name)] = {"pos": np.zeros(3), "mass": CARRIER_MASS,
+                                                 "fullinertia": np.array(body.fullinertia)}
+        axis = self._in_world(point.body, Transform(pos=u)).pos if point.body == "ground" else u
+        jname = self._unique(f"{gname}_switch")
+        body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=ref, armature=CARRIER_ARMATURE)
+        self.b.exact[("joint", jname)] = {"axis": np.asarray(axis, dtype=float), "pos": np.zeros(3), "ref": ref}
+        rec = JointRecord(jname, "slide", path.owner, f"{point.name}/switch", None, None, "coordinate")
+        self.b.couple(rec, self.b.drivers[cname].then(slide), ref, point.element)
+        self.b.result.joints.append(rec)
+        sname = self._unique(f"{gname}_side")
+        body.add_site(name=sname, pos=[0, 0, 0], size=[0.001, 0, 0], group=5)
+        self.b.result.notes.append(
+            f"{path.owner}: ConditionalPathPoint '{point.name}' (active for '{cname}' in [{lo:g}, {hi:g}]) is a "
+            f"wrap sphere of radius {r:g} m on the point whose side site '{cname}' moves out of it beyond the range")
+        # not fitted (o2m.wrapfit): it is OpenSim's point to within its radius, and moving it can put the
+        # straight path through it where OpenSim has the point off (Leg6Dof9Musc vas_int_r: 0.35 -> 2.0 %)
+        return gname, sname
+
+    def _off_direction(self, path: Path, k: int, roles: list[str], centre: np.ndarray) -> np.ndarray:
+        """Unit direction (body frame of point ``k``) from the point towards which the straight
+        segment between its neighbouring sites passes in the sampled poses where OpenSim has the
+        point inactive (each pose weighted by the length the point would add there)."""
+        pts = path.points
+        keep = [r == "site" for r in roles]
+        before = next(i for i in range(k - 1, -1, -1) if keep[i])
+        after = next(i for i in range(k + 1, len(pts)) if keep[i])
+        point = pts[k]
+        feet, weights = [], []
+        for j, (_, values) in enumerate(self._pose_samples()):
+            if self._active(point, values):
+                continue
+            frames = self._sample_frames(j)
+            to_body = frames[point.body].inverse()
+            a = to_body.apply(frames[pts[before].body].apply(self.location_at(pts[before], values)))
+            b = to_body.apply(frames[pts[after].body].apply(self.location_at(pts[after], values)))
+            ab = b - a
+            t = float(np.clip((centre - a) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0))
+            feet.append(a + t * ab - centre)
+            weights.append(float(np.linalg.norm(centre - a) + np.linalg.norm(b - centre) - np.linalg.norm(ab)))
+        values = self._reference_active_values(point)
+        n_ground, _, _ = self._bend(path, k, values, keep)
+        n_body = self.b.ground_frames_at(values)[point.body].rot.T @ n_ground
+        if not feet:
+            return -n_body
+        f, w = np.array(feet), np.array(weights)
+        m = 2000
+        i = np.arange(m) + 0.5
+        phi, theta = np.arccos(1 - 2 * i / m), np.pi * (1 + 5**0.5) * i
+        cand = np.vstack([-n_body, np.c_[np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)]])
+        cost = (((cand @ f.T) < 0) * w[None, :]).sum(axis=1)
+        best = np.flatnonzero(cost <= cost.min() + 1e-9)
+        u = cand[best[np.argmax(cand[best] @ -n_body)]]
+        return u / np.linalg.norm(u)
 
     def add_point(self, path: Path, point: PathPoint) -> str:
-        """Add the site of ``point``; returns its name."""
+        """Add the site of ``point`` (a path point, a moving point, or a conditional point kept
+        always on the path); returns its name."""
         name = self._unique(point.name if point.name.startswith(path.owner) else f"{path.owner}-{point.name}")
         moving = {i: m for i, m in point.moving.items() if not self._fixed(m[0])}
-        if point.condition is not None and not self._fixed(point.condition[0]):
-            moving = self.conditional_motion(point, path.points)
-            self.b.result.notes.append(
-                f"ConditionalPathPoint '{point.name}' moves onto the segment between its neighbours outside "
-                f"[{point.condition[1]:g}, {point.condition[2]:g}] of '{point.condition[0]}'")
         loc0 = point.location.copy()  # the location at the reference pose, in the body frame
-        if point.condition is not None:
-            for i, (cname, fn) in moving.items():
-                loc0[i] = float(fn(np.array([self.b.ref[cname]]))[0])
         pos = self._in_world(point.body, Transform(pos=loc0)).pos
         if not moving:
             self.b.bodies[point.body].add_site(name=name, pos=pos, size=[0.002, 0, 0], group=3)
@@ -162,9 +408,11 @@ class TendonBuilder:
 
     # -- wraps ---------------------------------------------------------------------------
     def wrap_geom(self, wrap: WrapObject) -> str | None:
-        """The MuJoCo geom of a wrap object (added once), or None when it has no MuJoCo twin."""
-        if wrap.name in self.geoms:
-            return self.geoms[wrap.name]
+        """A new MuJoCo geom for a wrap object (each path gets its own, so fitting one path's wrap
+        leaves the others alone), or None when it has no MuJoCo twin (a torus)."""
+        if self.geoms.get(wrap.name, "") is None:
+            return None
+        first_use = wrap.name not in self.geoms
         x = self._in_world(wrap.body, wrap.frame)
         kind, size, extra_rot = wrap.kind, None, np.eye(3)
         if kind == "sphere":
@@ -186,8 +434,9 @@ class TendonBuilder:
                 size = [r, 0, 0]
                 what = f"ellipsoid {d.tolist()} wrapped as a sphere of radius {r:.4g} m"
                 err = float(np.max(np.abs(d - r)))
-            self.b.result.approximations.append(Approximation("WrapEllipsoid", wrap.name, what, err, "m",
-                                                              "largest semi-axis difference"))
+            if first_use:
+                self.b.result.approximations.append(Approximation("WrapEllipsoid", wrap.name, what, err, "m",
+                                                                  "largest semi-axis difference"))
         else:
             self.b.result.notes.append(f"WrapTorus '{wrap.name}' is not converted (MuJoCo cannot wrap a torus)")
             self.geoms[wrap.name] = None
@@ -195,16 +444,23 @@ class TendonBuilder:
         x = x @ Transform(extra_rot)
         name = self._unique(f"wrap_{wrap.name}")
         gtype = mujoco.mjtGeom.mjGEOM_SPHERE if kind == "sphere" else mujoco.mjtGeom.mjGEOM_CYLINDER
-        self.b.bodies[wrap.body].add_geom(name=name, type=gtype, size=size, pos=x.pos, quat=matrix_to_quat(x.rot),
+        quat = matrix_to_quat(x.rot)
+        self.b.bodies[wrap.body].add_geom(name=name, type=gtype, size=size, pos=x.pos, quat=quat,
                                           contype=0, conaffinity=0, group=3, density=0, rgba=[0.3, 0.7, 0.9, 0.4])
+        self.exact[("geom", name)] = {"pos": x.pos, "quat": np.asarray(quat, dtype=float),
+                                      "size": np.asarray(size[:2] if kind == "cylinder" else size[:1], dtype=float)}
         self.geoms[wrap.name] = name
+        self.geom_frames[name] = (wrap.frame @ Transform(extra_rot), kind, float(size[0]))
         return name
 
     def place_wraps(self, path: Path, sites_ground: np.ndarray) -> list[tuple[int, WrapObject]]:
-        """Choose, for each wrap of ``path``, the segment it acts on (closest at the reference pose)."""
-        chosen: dict[int, tuple[float, WrapObject]] = {}
+        """Choose, for each wrap of ``path``, the segment (within the wrap's OpenSim range) it acts
+        on at the reference pose. MuJoCo wraps one geom per segment, so wraps are assigned closest
+        first: a wrap whose closest segment is taken goes to its next closest free one when that
+        passes within two of its sizes of it, and is left out (noted) otherwise."""
         n = len(path.points)
-        for pw in path.wraps:
+        candidates = []  # (distance, wrap order, segment, wrap, size)
+        for order, pw in enumerate(path.wraps):
             wrap = self.wraps.get(pw.wrap)
             if wrap is None:
                 raise self.b.doc.error(path.element, f"wraps over '{pw.wrap}', which no body defines")
@@ -214,66 +470,246 @@ class TendonBuilder:
             first = 0 if lo < 1 else lo - 1
             last = n - 2 if hi < 1 else min(hi - 1, n - 1) - 1
             centre = (self.b.ground_frames[wrap.body] @ wrap.frame).pos
-            best = None
+            size = max(wrap.radius, float(np.max(wrap.dimensions)), wrap.outer_radius)
             for seg in range(first, last + 1):
                 d = _segment_distance(sites_ground[seg], sites_ground[seg + 1], centre)
-                if best is None or d < best[0]:
-                    best = (d, seg)
-            if best is None:
+                candidates.append((d, order, seg, wrap, size))
+        candidates.sort(key=lambda c: (c[0], c[1]))
+        best = {}
+        for d, order, _, _, _ in candidates:
+            best.setdefault(order, d)
+        chosen: dict[int, WrapObject] = {}
+        placed: set[int] = set()
+        for d, order, seg, wrap, size in candidates:
+            if order in placed or seg in chosen or d > best[order] + 2.0 * size:
                 continue
-            d, seg = best
-            if seg in chosen:  # MuJoCo wraps one geom per segment: keep the closer one
-                keep, drop = (chosen[seg][1], wrap) if chosen[seg][0] <= d else (wrap, chosen[seg][1])
-                self.b.result.notes.append(f"{path.owner}: wrap object '{drop.name}' left out (MuJoCo wraps one "
-                                           f"object per path segment; '{keep.name}' kept)")
-                if keep is chosen[seg][1]:
-                    continue
-            chosen[seg] = (d, wrap)
-        return sorted(((seg, w) for seg, (_, w) in chosen.items()), key=lambda t: t[0])
+            chosen[seg] = wrap
+            placed.add(order)
+        for order, pw in enumerate(path.wraps):
+            if order in best and order not in placed:
+                self.b.result.notes.append(f"{path.owner}: wrap object '{pw.wrap}' left out (MuJoCo wraps one "
+                                           f"geom per path segment and the segments near it are taken)")
+        return sorted(chosen.items(), key=lambda t: t[0])
 
     def side_site(self, wrap: WrapObject, geom: str, a: np.ndarray, b: np.ndarray) -> str:
-        """A side site for ``geom``, on the side the segment a-b (ground, reference pose) passes."""
-        x_ground = self.b.ground_frames[wrap.body] @ wrap.frame
+        """A side site for ``geom``, on the side the segment a-b (ground, reference pose) passes,
+        or, for a wrap with a quadrant, on the side the quadrant names (for a cylinder, at the
+        height along its axis where that segment passes closest)."""
+        frame, kind, radius = self.geom_frames[geom]
+        x_ground = self.b.ground_frames[wrap.body] @ frame
         local_a, local_b = x_ground.inverse().apply(a), x_ground.inverse().apply(b)
         seg = local_b - local_a
         t = np.clip(-local_a @ seg / max(seg @ seg, 1e-18), 0.0, 1.0)
         closest = local_a + t * seg
         if wrap.quadrant not in ("all", ""):
             sign = -1.0 if wrap.quadrant.startswith("-") else 1.0
-            direction = sign * np.eye(3)["xyz".index(wrap.quadrant[-1].lower())]
+            axis_wrap = sign * np.eye(3)["xyz".index(wrap.quadrant[-1].lower())]  # in the wrap object's frame
+            direction = (frame.rot.T @ wrap.frame.rot) @ axis_wrap
         else:
-            direction = closest
-        if wrap.kind == "cylinder":
+            direction = closest.copy()
+        if kind == "cylinder":
             direction = direction * np.array([1.0, 1.0, 0.0])
+        if np.linalg.norm(direction) < 1e-12:
+            direction = closest * np.array([1.0, 1.0, 0.0]) if kind == "cylinder" else closest.copy()
         if np.linalg.norm(direction) < 1e-12:
             direction = np.array([1.0, 0.0, 0.0])
         direction = direction / np.linalg.norm(direction)
-        radius = wrap.radius if wrap.kind in ("sphere", "cylinder") else float(np.max(wrap.dimensions))
         local = direction * radius * SIDE_SITE_DISTANCE
-        if wrap.kind == "cylinder":
+        if kind == "cylinder":
             local[2] = closest[2]
-        pos = self._in_world(wrap.body, wrap.frame).apply(local)
+        pos = self._in_world(wrap.body, frame).apply(local)
         name = self._unique(f"{geom}_side")
         self.b.bodies[wrap.body].add_site(name=name, pos=pos, size=[0.001, 0, 0], group=5)
         self.b.exact[("site", name)] = {"pos": pos}
         return name
 
+    # -- path forces ---------------------------------------------------------------------
+    def _moves(self, point: PathPoint) -> bool:
+        return any(not self._fixed(c) for c, _ in point.moving.values())
+
+    def _pose_samples(self) -> list[tuple[dict[str, float], dict[str, float]]]:
+        """(independent values, every coordinate's value) of the reference pose and of
+        :data:`PATH_FORCE_POSES` random poses (seed 0) with every free coordinate uniform in its range."""
+        if self._samples is None:
+            rng = np.random.default_rng(0)
+            free = [n for n, d in self.b.drivers.items() if d.base == n and not self._fixed(n)]
+            ranges = [self.b.fit_range(n, self.b.coord_joint[n][1].kind if n in self.b.coord_joint else "rotation")
+                      for n in free]
+            bases = [{n: self.b.ref[n] for n in free}]
+            bases += [{n: float(rng.uniform(lo, hi)) for n, (lo, hi) in zip(free, ranges, strict=True)}
+                      for _ in range(PATH_FORCE_POSES)]
+            self._samples = [(b, self.b.coordinate_values(b)) for b in bases]
+        return self._samples
+
+    def _sample_frames(self, k: int) -> dict[str, Transform]:
+        if k not in self._frames:
+            self._frames[k] = self.b.ground_frames_at(self._pose_samples()[k][1])
+        return self._frames[k]
+
+    def _straight_length(self, path: Path, k: int, drop: set[int] | frozenset[int] = frozenset()) -> float:
+        """Length (m) of ``path`` at pose sample ``k`` with its active points (but those in
+        ``drop``) joined straight (a lower bound of OpenSim's length, which wrapping only lengthens)."""
+        values = self._pose_samples()[k][1]
+        frames = self._sample_frames(k)
+        pts = [frames[p.body].apply(self.location_at(p, values)) for i, p in enumerate(path.points)
+               if i not in drop and self._active(p, values)]
+        return float(sum(np.linalg.norm(b - a) for a, b in zip(pts[:-1], pts[1:], strict=True)))
+
+    def plan_path_forces(self, path: Path, roles: list[str], site_point: list[int],
+                         planned: dict[int, tuple]) -> tuple[list[int], float]:
+        """The site segments of ``path`` to leave out of its tendon (``path_forces``) and the
+        length (m) to hold them at; records the choice (:class:`PathForceRecord`, an
+        :class:`Approximation`). A candidate is a segment between two sites on one body, one of
+        them a moving point, that no wrap or conditional point of another body acts on."""
+        pts = path.points
+        cands: list[tuple[int, PathPoint, PathPoint]] = []
+        blocked: list[tuple[str, str]] = []
+        for i in range(len(site_point) - 1):
+            a, b = pts[site_point[i]], pts[site_point[i + 1]]
+            if a.body != b.body or not (self._moves(a) or self._moves(b)):
+                continue
+            others = [pts[k].name for k in range(site_point[i] + 1, site_point[i + 1])
+                      if roles[k] == "conditional" and pts[k].body != a.body]
+            item = planned.get(i)
+            if item is not None and item[0] == "wrap" and item[1].body != a.body:
+                others.append(item[1].name)
+            if others:
+                blocked.append((a.name, b.name))
+                self.b.result.notes.append(f"{path.owner}: same-body segment {a.name}-{b.name} kept in the tendon "
+                                           f"({', '.join(others)} of another body acts on it)")
+            else:
+                cands.append((i, a, b))
+        if not cands:
+            return [], 0.0
+        samples = self._pose_samples()
+
+        def held(values: dict[str, float]) -> float:
+            return float(sum(np.linalg.norm(self.location_at(a, values) - self.location_at(b, values))
+                             for _, a, b in cands))
+
+        lengths = np.array([held(v) for _, v in samples])
+        shortest = min(self._straight_length(path, k) for k in range(len(samples)))
+        bases = sorted({self.b.drivers[c].base for _, a, b in cands for p in (a, b) for c, _ in p.moving.values()
+                        if not self._fixed(c)})
+        h = PATH_FORCE_FD_STEP
+        arms = {}
+        for c in bases:
+            d = [abs(held(self.b.coordinate_values({**base, c: base[c] + h}))
+                     - held(self.b.coordinate_values({**base, c: base[c] - h}))) / (2 * h) for base, _ in samples]
+            arms[c] = float(max(d)) * 1e3
+        variation = float(lengths.max() - lengths.min())
+        pct = 100.0 * variation / max(shortest, 1e-12)
+        mode = self.path_forces_mode
+        if mode == "auto":
+            mode = "opensim" if variation <= PATH_FORCES_AUTO_VARIATION * shortest else "kinematic"
+        c_held = 0.5 * float(lengths.max() + lengths.min())
+        opensim = mode == "opensim"
+        segs = [(a.name, b.name) for _, a, b in cands]
+        held_frac = 0.5 if opensim else 0.0  # the length error: half the variation when held
+        rec = PathForceRecord(path.owner, path.owner_type, mode, self.path_forces_mode, segs,
+                              c_held if opensim else 0.0, variation * 1e3, pct, shortest * 1e3,
+                              held_frac * variation * 1e3, held_frac * pct, arms, blocked)
+        self.path_forces.append(rec)
+        seg_txt = ", ".join(f"{a}-{b}" for a, b in segs)
+        worst_arm = max(arms.values(), default=0.0)
+        arm_txt = ", ".join(f"{v:.3g} mm ({c})" for c, v in arms.items())
+        if opensim:
+            self.held[path.owner] = {"pairs": segs, "length": c_held}
+            self.b.result.approximations.append(Approximation(
+                path.owner_type, path.owner,
+                f"tendon is OpenSim's force transmission: same-body segment(s) {seg_txt} (OpenSim applies no "
+                f"tension along them) held at {c_held * 1e3:.4g} mm in a pulley branch",
+                0.5 * pct, "% of the path length (vs getLength)",
+                f"length error up to {0.5 * variation * 1e3:.3g} mm; moment arm = computeMomentArm, differs from "
+                f"OpenSim's -dL/dq by up to {arm_txt}"))
+        else:
+            self.b.result.approximations.append(Approximation(
+                path.owner_type, path.owner,
+                f"tendon is OpenSim's length, same-body segment(s) {seg_txt} included: its moment arm is -dL/dq, "
+                f"not OpenSim's computeMomentArm (OpenSim applies no tension along them)",
+                worst_arm, "mm moment arm (vs computeMomentArm)",
+                f"by coordinate {arm_txt}; holding them would change the length by {pct:.3g} % peak to peak"
+                + (f" (> {100 * PATH_FORCES_AUTO_VARIATION:g} %)" if self.path_forces_mode == "auto" else "")))
+        return ([i for i, _, _ in cands], c_held) if opensim else ([], 0.0)
+
+    def _held_branch(self, path: Path, a: PathPoint, b: PathPoint, length: float) -> list[str]:
+        """Two sites on ``a``'s body, ``length`` apart along the segment a-b at the reference pose:
+        a constant-length pulley branch standing for the segments held (drawn where they are)."""
+        pa, pb = np.asarray(a.location, dtype=float), np.asarray(b.location, dtype=float)
+        u = pb - pa
+        u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-12 else np.array([1.0, 0.0, 0.0])
+        names = []
+        for tag, loc in (("a", pa), ("b", pa + length * u)):
+            name = self._unique(f"{path.owner}-held_{tag}")
+            pos = self._in_world(a.body, Transform(pos=loc)).pos
+            self.b.bodies[a.body].add_site(name=name, pos=pos, size=[0.001, 0, 0], group=5)
+            self.b.exact[("site", name)] = {"pos": pos}
+            names.append(name)
+        return names
+
     # -- tendons and actuators -----------------------------------------------------------
     def add_path(self, path: Path) -> None:
-        sites = [self.add_point(path, p) for p in path.points]
+        roles = self.conditional_roles(path)
+        site_point = [k for k, r in enumerate(roles) if r == "site"]
+        site_of_point: list[int] = []  # for each point, the index of the last site at or before it
+        for role in roles:
+            site_of_point.append((site_of_point[-1] if site_of_point else -1) + (role == "site"))
         sites_ground = np.array([(self.b.ground_frames[p.body] @ Transform(pos=p.location)).pos for p in path.points])
-        placed = []
+        # what each site segment wraps, decided before any geom is made
+        planned: dict[int, tuple] = {}  # site segment -> ("conditional", point) or ("wrap", WrapObject, segment)
+        for k, role in enumerate(roles):
+            if role == "conditional":
+                planned[site_of_point[k]] = ("conditional", k)
         for seg, wrap in self.place_wraps(path, sites_ground):
+            sseg = site_of_point[seg]
+            if sseg in planned:
+                kind, other = planned[sseg][0], planned[sseg][1]
+                what = (f"ConditionalPathPoint '{path.points[other].name}'" if kind == "conditional"
+                        else f"'{other.name}'")
+                self.b.result.notes.append(f"{path.owner}: wrap object '{wrap.name}' left out (its path segment "
+                                           f"already wraps {what}; MuJoCo wraps one geom there)")
+                continue
+            planned[sseg] = ("wrap", wrap, seg)
+        dropped, held_length = self.plan_path_forces(path, roles, site_point, planned)
+        sites = [self.add_point(path, path.points[k]) for k in site_point]
+        on_segment: dict[int, tuple[str, str]] = {}  # site segment -> (geom, side site)
+        for sseg, item in sorted(planned.items(), key=lambda kv: (kv[1][0] != "conditional", kv[0])):
+            if sseg in dropped:
+                self.b.result.notes.append(f"{path.owner}: {item[0]} on the held segment "
+                                           f"{sites[sseg]}-{sites[sseg + 1]} left out with it")
+                continue
+            if item[0] == "conditional":
+                on_segment[sseg] = self.conditional_geom(path, item[1], roles)
+                continue
+            wrap, seg = item[1], item[2]
             geom = self.wrap_geom(wrap)
             if geom is None:
                 continue
-            placed.append(_PlacedWrap(seg, geom, self.side_site(wrap, geom, sites_ground[seg], sites_ground[seg + 1])))
+            side = self.side_site(wrap, geom, sites_ground[seg], sites_ground[seg + 1])
+            on_segment[sseg] = (geom, side)
+            self.path_geoms.append(PathGeom(path.owner, geom, side, "Wrap" + wrap.kind.capitalize(), wrap.name,
+                                            wrap.body))
+        branches: list[list[int]] = [[0]]
+        for i in range(len(sites) - 1):
+            if i in dropped:
+                branches.append([i + 1])
+            else:
+                branches[-1].append(i + 1)
+        runs = [[sites[i] for i in br] for br in branches if len(br) > 1]
+        if dropped:
+            first = dropped[0]
+            runs.append(self._held_branch(path, path.points[site_point[first]], path.points[site_point[first + 1]],
+                                          held_length))
         tendon = self.spec.add_tendon(name=path.owner)
-        by_seg = {p.segment: p for p in placed}
-        for i, site in enumerate(sites):
-            tendon.wrap_site(site)
-            if i in by_seg:
-                tendon.wrap_geom(by_seg[i].geom, by_seg[i].sidesite)
+        index = {name: i for i, name in enumerate(sites)}
+        for r, run in enumerate(runs):
+            if r:
+                tendon.wrap_pulley(1.0)
+            for k, site in enumerate(run):
+                tendon.wrap_site(site)
+                i = index.get(site)
+                if k + 1 < len(run) and i is not None and i in on_segment:
+                    tendon.wrap_geom(*on_segment[i])
         if path.owner_type in MUSCLE_TYPES:
             act = self.spec.add_actuator(name=path.owner, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=path.owner)
             fmax = float(path.element.findtext("max_isometric_force") or 1000.0)
@@ -297,12 +733,29 @@ def _rotation_taking_z_to(axis: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def add_paths(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, WrapObject]) -> list[Skipped]:
-    """Add every path (tendon, sites, wrap geoms, actuator) to ``builder``'s spec."""
-    tb = TendonBuilder(builder, wraps)
+def add_paths(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, WrapObject], *,
+              path_forces: str = "auto") -> TendonBuilder:
+    """Add every path (tendon, sites, wrap geoms, actuator) to ``builder``'s spec; returns the
+    :class:`TendonBuilder` (its ``path_geoms``, ``exact`` geom values, ``path_forces`` records and
+    ``held`` segments). ``path_forces``: see the module notes."""
+    tb = TendonBuilder(builder, wraps, path_forces)
     for path in paths:
         tb.add_path(path)
-    return []
+    return tb
+
+
+def restore_geom_precision(xml: str, exact: dict[tuple[str, str], dict[str, np.ndarray]]) -> str:
+    """MJCF text with the listed geoms' attributes written in full (17 significant digits)."""
+    from lxml import etree
+
+    root = etree.fromstring(xml.encode())
+    for el in root.iter("geom"):
+        vals = exact.get(("geom", el.get("name")))
+        if vals is None:
+            continue
+        for attr, v in vals.items():
+            el.set(attr, " ".join(f"{float(x):.17g}" for x in np.atleast_1d(np.asarray(v, dtype=float))))
+    return etree.tostring(root, encoding="unicode", pretty_print=True)
 
 
 def tendon_length_ranges(model: mujoco.MjModel, coordinates: dict[str, tuple[float, float]], *,

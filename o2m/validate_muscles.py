@@ -16,7 +16,10 @@ that tendon with gear 1, so ``actuator_length == ten_length`` is OpenSim's muscl
   joint equalities, or the tendon Jacobian projected on the coordinate direction), the sign
   convention of OpenSim's ``computeMomentArm``.
 * :func:`moment_arm_curve` / :func:`plot_moment_arms` give / plot both models' moment arm of one
-  muscle about one coordinate over its range; :func:`format_muscle_table` summarises reports.
+  muscle about one coordinate over its range; :func:`moment_arm_sweeps` does that for every
+  (path, spanned coordinate) pair and :func:`plot_moment_arm_sweeps` draws each path's worst
+  pair into a small multi-page PDF (the conversion report's moment-arm plots);
+  :func:`format_muscle_table` summarises reports.
 """
 
 from __future__ import annotations
@@ -51,7 +54,10 @@ __all__ = [
     "format_muscle_table",
     "moment_arm_curve",
     "mujoco_moment_arms",
+    "moment_arm_sweeps",
     "mujoco_tendon_lengths",
+    "opensim_spikes",
+    "plot_moment_arm_sweeps",
     "plot_moment_arms",
     "sweep_jumps",
 ]
@@ -65,6 +71,12 @@ LEN_PCT = 1.0
 MA_MEDIAN_MM = 0.5
 MA_P95_MM = 2.0
 MA_MAX_MM = 5.0
+#: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
+DLDQ_CONSISTENCY = 1e-3
+#: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
+SPIKE_STEP = 0.01
+SPIKE_LINEAR_STEP = 1e-3
+SPIKE_TOL = 1e-3
 
 _TRANSLATIONAL = 2  # opensim Coordinate::Translational
 
@@ -383,6 +395,46 @@ class _Pair:
         return np.linspace(lo, hi, n)
 
 
+def _nan_rms(x: np.ndarray) -> float:
+    """RMS of the finite values of ``x`` (NaN when there are none)."""
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
+
+
+def opensim_spikes(pair: _Pair, values: Mapping[str, float], muscles: Sequence[int],
+                   lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim length is an isolated spike at
+    the pose of independent ``values``: for some independent coordinate, moving it by
+    :data:`SPIKE_STEP` radians (:data:`SPIKE_LINEAR_STEP` m) either way gives two lengths that
+    agree with each other within :data:`SPIKE_TOL` while the length at the pose differs from
+    their mean by more than :data:`SPIKE_TOL`. A smooth path cannot do that (its second
+    difference over 0.01 rad is ~1e-5 m), nor can a conditional point's switch (a step, where
+    the two neighbours differ); it is OpenSim's wrapping taking a wrong way round in a narrow band
+    of poses (Arm26's BIClong round BIClonghh: 86 mm longer for shoulder elevation in 0.515-0.518
+    rad). Returns muscle index -> {"coordinate", "length", "neighbours"} (m)."""
+    out: dict[int, dict[str, Any]] = {}
+    if not len(muscles):
+        return out
+    idx = np.asarray(list(muscles), dtype=int)
+    base = pair.os_lengths(pair.os_state(values)) if lengths is None else np.asarray(lengths)
+    for c in pair.indep:
+        name = c.getName()
+        h = SPIKE_LINEAR_STEP if int(c.getMotionType()) == _TRANSLATIONAL else SPIKE_STEP
+        try:
+            up = pair.os_lengths(pair.os_state({**values, name: values[name] + h}))
+            dn = pair.os_lengths(pair.os_state({**values, name: values[name] - h}))
+        except Exception:
+            continue
+        for i in idx:
+            if int(i) in out:
+                continue
+            if abs(up[i] - dn[i]) < SPIKE_TOL and abs(base[i] - 0.5 * (up[i] + dn[i])) > SPIKE_TOL:
+                out[int(i)] = {"coordinate": name, "length": float(base[i]),
+                               "neighbours": [float(dn[i]), float(up[i])]}
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # Report
 # --------------------------------------------------------------------------------------------
@@ -398,6 +450,10 @@ class MomentArmError:
     max: float
     max_abs_opensim: float
     max_abs_mujoco: float
+    #: RMS of MuJoCo minus OpenSim's own -dL/dq (central differences, dependent coordinates
+    #: following their couplers), and RMS of OpenSim's computeMomentArm minus that -dL/dq.
+    rms_vs_dldq: float = 0.0
+    opensim_compute_vs_dldq: float = 0.0
 
 
 @dataclass
@@ -447,6 +503,10 @@ class MuscleReport:
     ma_p95: float
     ma_max: float
     ma_fd_vs_jacobian: float = 0.0
+    #: Median / 95th percentile / max of the per-pair RMS errors against OpenSim's own -dL/dq.
+    ma_dldq_median: float = 0.0
+    ma_dldq_p95: float = 0.0
+    ma_dldq_max: float = 0.0
     missing_tendons: list[str] = field(default_factory=list)
     extra_tendons: list[str] = field(default_factory=list)
     actuator_issues: dict[str, str] = field(default_factory=dict)
@@ -454,6 +514,9 @@ class MuscleReport:
     locked_coordinates: list[str] = field(default_factory=list)
     worst_length: dict[str, Any] | None = None
     skipped_poses: int = 0
+    #: (muscle, pose) samples left out because OpenSim's own length spikes there
+    #: (:func:`opensim_spikes`): each {"muscle", "pose", "coordinate", "length", "neighbours"}.
+    opensim_spikes: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def name(self) -> str:
@@ -495,7 +558,9 @@ class MuscleReport:
         lines = [
             f"{self.name}: {len(self.muscles)} muscles, {self.n_poses} poses ({self.ma_poses} for moment arms), "
             f"{len(self.coordinates)} coordinates"
-            + (f", {self.skipped_poses} poses skipped (assembly failed)" if self.skipped_poses else ""),
+            + (f", {self.skipped_poses} poses skipped (assembly failed)" if self.skipped_poses else "")
+            + (f", {len(self.opensim_spikes)} (muscle, pose) samples left out where OpenSim's own length spikes"
+               if self.opensim_spikes else ""),
         ]
         w = max([len("muscle")] + [len(m) for m in self.muscles])
         lines.append(f"  {'muscle':<{w}}  {'max len mm':>10}  {'rms len mm':>10}  {'max len %':>9}  "
@@ -509,6 +574,8 @@ class MuscleReport:
         lines.append(f"  moment-arm RMS error over {self.ma_pairs} pairs: median {self.ma_median * 1e3:.3g} mm, "
                      f"95th percentile {self.ma_p95 * 1e3:.3g} mm, max {self.ma_max * 1e3:.3g} mm "
                      f"(MuJoCo finite differences vs Jacobian: {self.ma_fd_vs_jacobian * 1e3:.2g} mm)")
+        lines.append(f"  against OpenSim's own -dL/dq: median {self.ma_dldq_median * 1e3:.3g} mm, 95th percentile "
+                     f"{self.ma_dldq_p95 * 1e3:.3g} mm, max {self.ma_dldq_max * 1e3:.3g} mm")
         worst = [r for r in self.worst_moment_arms(3) if r[2].rms > 0]
         if worst:
             lines.append("  worst moment arms: " + "; ".join(
@@ -631,8 +698,11 @@ def compare_muscles(
     len_max = np.full(nm, -np.inf)
     worst: dict[str, Any] | None = None
     n_done = skipped = 0
+    n_valid = np.zeros(nm, dtype=int)
+    spikes: list[dict[str, Any]] = []
     ma_states: list[Any] = []
     ma_mj: list[np.ndarray] = []  # (nm, nc) per moment-arm pose
+    ma_valid: list[np.ndarray] = []  # (nm,) bool per moment-arm pose: not an OpenSim spike
     fd_vs_jac = 0.0
 
     desc = f"muscles {os.path.basename(pair.osim_path)}"
@@ -646,13 +716,21 @@ def compare_muscles(
         l_os = pair.os_lengths(state)
         l_mj = pair.mj_lengths(values)[tids]
         err = np.abs(l_mj - l_os)
+        valid = np.ones(nm, dtype=bool)
+        suspects = np.flatnonzero(err > SPIKE_TOL)
+        if suspects.size:  # only a sample whose error is over SPIKE_TOL can be an OpenSim spike
+            for i, info in opensim_spikes(pair, values, suspects, l_os).items():
+                valid[i] = False
+                spikes.append({"muscle": names[i], "pose": k, **info})
+        err = np.where(valid, err, 0.0)
+        n_valid += valid
         pct = 100.0 * err / np.maximum(np.abs(l_os), 1e-12)
         err_sq += err**2
         pct_sq += pct**2
         np.maximum(max_err, err, out=max_err)
         np.maximum(max_pct, pct, out=max_pct)
-        np.minimum(len_min, l_os, out=len_min)
-        np.maximum(len_max, l_os, out=len_max)
+        np.minimum(len_min, np.where(valid, l_os, np.inf), out=len_min)
+        np.maximum(len_max, np.where(valid, l_os, -np.inf), out=len_max)
         if nm:
             i = int(np.argmax(err))
             if worst is None or err[i] > worst["error"]:
@@ -665,6 +743,7 @@ def compare_muscles(
                 fd_vs_jac = max(fd_vs_jac, float(np.max(np.abs(fd - jac))))
             ma_mj.append(fd if ma_method == "fd" else jac)
             ma_states.append(state)
+            ma_valid.append(valid)
         n_done += 1
 
     # Moment arms: pairs OpenSim spans, or MuJoCo moves.
@@ -672,13 +751,39 @@ def compare_muscles(
     mj_nonzero = np.max(np.abs(np.stack(ma_mj)), axis=0) > MA_ZERO if ma_mj else np.zeros((nm, nc), bool)
     coord_objs = pair.indep
     moment_arms: dict[str, dict[str, MomentArmError]] = {n: {} for n in names}
-    rms_all = []
+    rms_all: list[float] = []
+    rms_fd_all: list[float] = []
+    dldq_cache: dict[tuple[int, int], np.ndarray] = {}
+
+    def os_dldq(k: int, j: int) -> np.ndarray:
+        """OpenSim's own -dL/dq of every path at moment-arm pose k about coordinate j: central
+        differences with steps of 10 and 100 FD_STEP, NaN where the two differ by more than
+        DLDQ_CONSISTENCY (a step of OpenSim's own length, e.g. a conditional point switching,
+        or an assembly that had to relax its tolerance, inside the step)."""
+        if (k, j) not in dldq_cache:
+            values = pair.os_indep_values(ma_states[k])
+            c = pair.indep_names[j]
+            try:
+                est = []
+                for h in (FD_STEP * 10, FD_STEP * 100):
+                    up = pair.os_lengths(pair.os_state({**values, c: values[c] + h}, assemble=bool(pair.dependent)))
+                    dn = pair.os_lengths(pair.os_state({**values, c: values[c] - h}, assemble=bool(pair.dependent)))
+                    est.append(-(up - dn) / (2 * h))
+                dldq_cache[(k, j)] = np.where(np.abs(est[0] - est[1]) <= DLDQ_CONSISTENCY, est[0], np.nan)
+            except Exception:
+                dldq_cache[(k, j)] = np.full(nm, np.nan)
+        return dldq_cache[(k, j)]
+
     for i, (name, _, obj) in enumerate(pair.matched):
         for j, cname in enumerate(pair.indep_names):
             if not ma_mj or not (cname in spans.get(name, set()) or mj_nonzero[i, j]):
                 continue
-            r_os = np.array([obj.computeMomentArm(st, coord_objs[j]) for st in ma_states], dtype=float)
-            r_mj = np.array([m[i, j] for m in ma_mj])
+            use = [k for k, v in enumerate(ma_valid) if v[i]]
+            if not use:
+                continue
+            r_os = np.array([obj.computeMomentArm(ma_states[k], coord_objs[j]) for k in use], dtype=float)
+            r_mj = np.array([ma_mj[k][i, j] for k in use])
+            r_fd = np.array([os_dldq(k, j)[i] for k in use])
             if np.max(np.abs(r_os)) <= MA_ZERO and np.max(np.abs(r_mj)) <= MA_ZERO:
                 continue
             d = r_mj - r_os
@@ -687,24 +792,28 @@ def compare_muscles(
                 max=float(np.max(np.abs(d))),
                 max_abs_opensim=float(np.max(np.abs(r_os))),
                 max_abs_mujoco=float(np.max(np.abs(r_mj))),
+                rms_vs_dldq=_nan_rms(r_mj - r_fd),
+                opensim_compute_vs_dldq=_nan_rms(r_os - r_fd),
             )
             moment_arms[name][cname] = e
             rms_all.append(e.rms)
+            rms_fd_all.append(e.rms_vs_dldq)
 
-    nd = max(n_done, 1)
+    nd = np.maximum(n_valid, 1)
     muscles = {
         n: MuscleError(
             kind=kind,
             max_len=float(max_err[i]),
-            rms_len=float(np.sqrt(err_sq[i] / nd)),
+            rms_len=float(np.sqrt(err_sq[i] / nd[i])),
             max_len_pct=float(max_pct[i]),
-            rms_len_pct=float(np.sqrt(pct_sq[i] / nd)),
+            rms_len_pct=float(np.sqrt(pct_sq[i] / nd[i])),
             length_range=(float(len_min[i]), float(len_max[i])),
             moment_arms=moment_arms[n],
         )
         for i, (n, kind, _) in enumerate(pair.matched)
     }
     rms_arr = np.array(rms_all)
+    rms_fd = np.array([v for v in rms_fd_all if np.isfinite(v)])
     return MuscleReport(
         osim_path=pair.osim_path,
         mjcf_path=pair.mjcf_path,
@@ -719,6 +828,9 @@ def compare_muscles(
         ma_p95=float(np.percentile(rms_arr, 95)) if rms_all else 0.0,
         ma_max=float(rms_arr.max()) if rms_all else 0.0,
         ma_fd_vs_jacobian=fd_vs_jac,
+        ma_dldq_median=float(np.median(rms_fd)) if rms_fd.size else 0.0,
+        ma_dldq_p95=float(np.percentile(rms_fd, 95)) if rms_fd.size else 0.0,
+        ma_dldq_max=float(rms_fd.max()) if rms_fd.size else 0.0,
         missing_tendons=pair.missing_tendons,
         extra_tendons=pair.extra_tendons,
         actuator_issues=_actuator_issues(pair),
@@ -726,6 +838,7 @@ def compare_muscles(
         locked_coordinates=pair.locked,
         worst_length=worst,
         skipped_poses=skipped,
+        opensim_spikes=spikes,
     )
 
 
@@ -890,3 +1003,113 @@ def plot_moment_arms(
     ax.set_title(f"{muscle} about {coordinate}")
     ax.legend(frameon=False)
     return ax
+
+
+def moment_arm_sweeps(
+    osim_path: str | os.PathLike,
+    mjcf_path: str | os.PathLike,
+    *,
+    n: int = 41,
+    assembly_accuracy: float | None = 1e-12,
+) -> list[dict[str, Any]]:
+    """For every OpenSim path force with a MuJoCo tendon and every independent coordinate it
+    spans, sweep the coordinate over its range (``n`` values, the others at their defaults) and
+    record OpenSim's ``computeMomentArm``, OpenSim's own ``-dL/dq`` (central differences,
+    10 * :data:`FD_STEP`, NaN where a step 10 times larger disagrees) and MuJoCo's ``-dL/dq``
+    (metres; dimensionless for a translational coordinate). Returns one JSON-safe dict per pair:
+    ``{"muscle", "coordinate", "linear", "q", "opensim", "opensim_dldq", "mujoco", "max_error",
+    "max_error_vs_dldq"}`` (the last two: max |MuJoCo - OpenSim| over the sweep, NaN-free values
+    only), largest ``max_error`` first. OpenSim values at steps that fail to assemble are NaN."""
+    pair = _Pair(osim_path, mjcf_path, assembly_accuracy)
+    spans = pair.spanned()
+    names = [nm for nm, _, _ in pair.matched]
+    out = []
+    h = FD_STEP * 10
+    for c in pair.indep:
+        cname = c.getName()
+        users = [i for i, nm in enumerate(names) if cname in spans.get(nm, set())]
+        if not users:
+            continue
+        lo, hi = _sample_bounds(c)
+        qs = np.linspace(lo, hi, n)
+        r_os = np.full((n, len(users)), np.nan)
+        r_fd = np.full((n, len(users)), np.nan)
+        r_mj = np.empty((n, len(users)))
+        for k, q in enumerate(qs):
+            values = {**pair.defaults, cname: float(q)}
+            try:
+                st = pair.os_state(values)
+                values = pair.os_indep_values(st)
+                r_os[k] = [pair.matched[i][2].computeMomentArm(st, c) for i in users]
+                asm = bool(pair.dependent)
+                est = []
+                for step in (h, 10 * h):  # two steps: a step of OpenSim's own length inside is no moment arm
+                    up = pair.os_lengths(pair.os_state({**values, cname: values[cname] + step}, assemble=asm))
+                    dn = pair.os_lengths(pair.os_state({**values, cname: values[cname] - step}, assemble=asm))
+                    est.append(-(up - dn)[users] / (2 * step))
+                r_fd[k] = np.where(np.abs(est[0] - est[1]) <= DLDQ_CONSISTENCY, est[0], np.nan)
+            except Exception:  # assembly failure: OpenSim NaN, MuJoCo at the requested value
+                pass
+            ma = mujoco_moment_arms(pair.mj_model, pair.mj_data, values, [cname], plan=pair.plan)
+            r_mj[k] = ma[pair.tendon_ids[users], 0]
+        linear = int(c.getMotionType()) == _TRANSLATIONAL
+        for col, i in enumerate(users):
+            d = np.abs(r_mj[:, col] - r_os[:, col])
+            dd = np.abs(r_mj[:, col] - r_fd[:, col])
+            out.append({"muscle": names[i], "coordinate": cname, "linear": linear, "q": qs.tolist(),
+                        "opensim": r_os[:, col].tolist(), "opensim_dldq": r_fd[:, col].tolist(),
+                        "mujoco": r_mj[:, col].tolist(),
+                        "max_error": float(np.nanmax(d)) if np.isfinite(d).any() else float("nan"),
+                        "max_error_vs_dldq": float(np.nanmax(dd)) if np.isfinite(dd).any() else float("nan")})
+    out.sort(key=lambda r: -(r["max_error"] if np.isfinite(r["max_error"]) else np.inf))
+    return out
+
+
+def plot_moment_arm_sweeps(sweeps: Sequence[Mapping[str, Any]], pdf_path: str | os.PathLike, *,
+                           per_page: int = 12, title: str = "") -> list[dict[str, Any]]:
+    """Draw, for each path in ``sweeps`` (from :func:`moment_arm_sweeps`), its pair with the
+    largest error against ``computeMomentArm``: OpenSim's ``computeMomentArm`` (grey), OpenSim's
+    ``-dL/dq`` (dotted, where it differs) and MuJoCo's ``-dL/dq`` (blue dashed), mm against the
+    coordinate in degrees (mm for a translational one), ``per_page`` panels a page, worst
+    first, into a multi-page PDF. Returns the pairs drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    worst: dict[str, Mapping[str, Any]] = {}
+    for r in sweeps:
+        e = r["max_error"] if np.isfinite(r["max_error"]) else np.inf
+        w = worst.get(r["muscle"])
+        if w is None or e > (w["max_error"] if np.isfinite(w["max_error"]) else np.inf):
+            worst[r["muscle"]] = r
+    rows = sorted(worst.values(), key=lambda r: -(r["max_error"] if np.isfinite(r["max_error"]) else np.inf))
+    cols = 4
+    with PdfPages(os.fspath(pdf_path)) as pdf:
+        for start in range(0, max(len(rows), 1), per_page):
+            chunk = rows[start:start + per_page]
+            nrow = max(1, math.ceil(len(chunk) / cols))
+            fig, axes = plt.subplots(nrow, cols, figsize=(11, 2.3 * nrow + 0.6), squeeze=False)
+            for ax in axes.ravel()[len(chunk):]:
+                ax.axis("off")
+            for ax, r in zip(axes.ravel(), chunk, strict=False):
+                q = np.asarray(r["q"])
+                x = q * 1e3 if r["linear"] else np.rad2deg(q)
+                k = 1.0 if r["linear"] else 1e3
+                os_ma, fd, mj = (np.asarray(r[key], dtype=float) * k for key in ("opensim", "opensim_dldq", "mujoco"))
+                ax.plot(x, os_ma, "-", lw=2.2, color="0.65", label="OpenSim computeMomentArm")
+                if np.nanmax(np.abs(fd - os_ma), initial=0.0) > 0.1:
+                    ax.plot(x, fd, ":", lw=1.2, color="k", label="OpenSim -dL/dq")
+                ax.plot(x, mj, "--", lw=1.1, color="C0", label="MuJoCo -dL/dq")
+                ax.set_title(f"{r['muscle']} / {r['coordinate']}: max {r['max_error'] * k:.2g}"
+                             f"{'' if r['linear'] else ' mm'}", fontsize=8)
+                ax.tick_params(labelsize=7)
+                ax.set_xlabel("mm" if r["linear"] else "deg", fontsize=7)
+            axes.ravel()[0].legend(fontsize=6, frameon=False)
+            fig.suptitle(title or "moment arms (mm): each path's worst coordinate, the others at their defaults",
+                         fontsize=9)
+            fig.tight_layout()
+            pdf.savefig(fig)
+            plt.close(fig)
+    return list(rows)
