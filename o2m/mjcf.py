@@ -631,7 +631,7 @@ class MjcfBuilder:
             for name in recs:
                 armature[name] = COUPLING_ARMATURE * float(inertia[dof, dof] - m.dof_armature[dof])
         slopes: dict[str, np.ndarray] = {}  # each extra joint's d joint / d coordinate over the range
-        for planned in {id(p.fit): p for p in self._planned.values()}.values():
+        for planned in {id(p.axes): p for p in self._planned.values()}.values():  # each coordinate's once
             fit = planned.fit
             x = np.linspace(planned.lo, planned.hi, 2001)
             inner = fit.inner_values(x)
