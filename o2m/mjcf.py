@@ -19,6 +19,11 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the cano
   the same axis (inner joints, quartics of the coordinate, and outer joints, quartics of an
   inner joint), whose values add to the axis's, fitted with the coordinate's other coupled
   axes by :func:`o2m.functions.fit_couplings` within MuJoCo's 6 degrees of freedom per body.
+  Where a body would need more, its joint's slides (main and extra joints) go on an
+  intermediate body ``<body>_couplings`` (1e-12 kg, no geometry) between the parent and the
+  body, at the body's reference frame, and the hinges stay on the body: translations along the
+  parent frame's axes come first in a CustomJoint, so the two compose as one joint. The report's
+  notes name each such body.
 * CoordinateCouplerConstraints become joint equalities the same way.
 * A locked coordinate, and every axis or coupled coordinate that depends only on locked
   coordinates, is folded into the fixed body transforms at its default value: exact, and
