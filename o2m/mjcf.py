@@ -421,7 +421,7 @@ class MjcfBuilder:
         is_coord = self.coord_joint.get(ax.coordinate, (None, None))[1] is ax
         return (ax.coordinate if is_coord else f"{joint.name}_{ax.name}"), is_coord
 
-    def coupled_axes(self) -> tuple[list[_CoupledAxis], dict[str, int]]:
+    def coupled_axes(self) -> tuple[list[_CoupledAxis], dict[tuple[str, str], int]]:
         """Every moving skeleton axis that a non-linear function of an independent coordinate
         drives (transform axes and coupled coordinates), in build order; and each body's number
         of moving axes of each kind, by (body, "slide" or "hinge")."""
