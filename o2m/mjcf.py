@@ -410,7 +410,7 @@ class MjcfBuilder:
         slides, hinges = self._split[joint.child]
         self.result.notes.append(
             f"body '{name}' ({COUPLINGS_BODY_MASS:g} kg) carries the translations of joint '{joint.name}' between "
-            f"'{joint.parent}' and '{joint.child}' ({slides} slides; '{joint.child}' keeps {hinges} hinges): "
+            f"'{joint.parent}' and '{joint.child}' (slides: {slides}; '{joint.child}' keeps the hinges: {hinges}): "
             f"with the extra joints of its spline couplings one body would have {slides + hinges} degrees of "
             f"freedom, MuJoCo allows {MAX_BODY_DOFS}")
         return body
