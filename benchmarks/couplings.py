@@ -4,7 +4,8 @@
 
 Converts each model twice: with every skeleton coupling a plain quartic (``COUPLING_TARGET``
 set to infinity) and as o2m converts it (inner and outer joints where a quartic misses the
-target). For each version it prints the degrees of freedom (nv), joints and equalities, and
+target). For each version it prints the degrees of freedom (nv), bodies (intermediate bodies that carry a joint's
+translations, ``<body>_couplings``, included), joints and equalities, and
 the mean ``mj_step`` time over ``--steps`` steps of constant random muscle excitation (seed 0,
 from the default pose, one thread; the best of three runs), flagged when MuJoCo found the
 simulation unstable. Then it simulates each version hanging under gravity for
@@ -101,7 +102,7 @@ def main() -> None:
     ap.add_argument("--hanging", nargs="*", default=["gait2354", "leg6dof9musc"])
     ap.add_argument("--steps", type=int, default=2000)
     a = ap.parse_args()
-    print(f"{'model':18s} {'version':13s} {'nv':>4s} {'joints':>6s} {'eqs':>4s} {'step us':>8s}")
+    print(f"{'model':18s} {'version':13s} {'nv':>4s} {'bodies':>6s} {'joints':>6s} {'eqs':>4s} {'step us':>8s}")
     with tempfile.TemporaryDirectory() as tmp:
         xmls = {}
         for name in sorted(set(a.models) | set(a.hanging)):
@@ -112,7 +113,7 @@ def main() -> None:
                 if name in a.models:
                     m = mujoco.MjModel.from_xml_path(str(xml))
                     sec, unstable = _step_time(xml, a.steps)
-                    print(f"{name:18s} {label:13s} {m.nv:4d} {m.njnt:6d} {m.neq:4d} {sec * 1e6:8.1f}"
+                    print(f"{name:18s} {label:13s} {m.nv:4d} {m.nbody:6d} {m.njnt:6d} {m.neq:4d} {sec * 1e6:8.1f}"
                           + ("  (unstable: MuJoCo reset it)" if unstable else ""))
         for name in a.hanging:
             print(f"\n{name} hanging 1 s under gravity (pelvis welded): worst |axis - OpenSim(q)| / worst "

@@ -1235,6 +1235,16 @@ COUPLING_RANDOM_STARTS = 10
 COUPLING_AMPLITUDE = 2.0
 #: An added inner joint is kept only if it brings the error below this fraction of the last.
 COUPLING_GAIN = 0.9
+#: Each inner joint moves through this many times the largest correction term of the axes it
+#: drives (each in its host axis's scale; the choice changes no sum of joints, as the host's main
+#: joint makes up for it). An outer joint's force reaches its inner joint times d outer / d inner,
+#: and MuJoCo softens the inner joint's equality by its coordinate's inverse weight, so a larger
+#: inner joint holds its outer joints stiffer, for an inertia added to the coordinate that grows
+#: with its square. Leg6Dof9Musc hanging under gravity, its knee's shared inner slide (which also
+#: drives the patella's rotation) sagged 3.8e-5 m off its equality scaled to its host axis's own
+#: correction, 2.3e-5 m scaled to the largest of them, 1.2e-5 m at twice that; the extra joints
+#: then add 2.3 % to the knee's 0.65 kg m² (the conversion report gives it per axis).
+COUPLING_INNER_SCALE = 2.0
 #: In the margins beyond [lo, hi] that fit_couplings covers, the error may be this many times
 #: the error inside: a degree-16 polynomial fitted on [lo, hi] alone leaves it fast (0.7 mm
 #: 0.045 rad beyond a knee's range), which a joint pressing into a soft limit reaches.
@@ -1555,8 +1565,8 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     degrees of :data:`COUPLING_STARTS` and seeded random shapes, adding one inner at a time;
     the best few are reweighted towards minimax (Lawson's iteration) and scored by their linear
     programs (worst error relative to ``targets``). Then C_a is the main quartic minus the inner
-    joints axis a carries, α_l the largest correction term of its host axis (or of its other
-    axes), and E_al = Σ_j b_alj (D_l / α_l)^j.
+    joints axis a carries, α_l :data:`COUPLING_INNER_SCALE` times the largest correction term
+    of the axes using it (scaled to its host axis), and E_al = Σ_j b_alj (D_l / α_l)^j.
 
     ``margin`` (a fraction of hi - lo) widens the fit by that much on each side, where the error
     may be :data:`COUPLING_MARGIN_SLACK` times larger than inside; the errors reported are the
@@ -1719,7 +1729,7 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
         own = corrections.get((host, k), (None, 0.0))[1]
         other = max([corrections[(a, k)][1] * fscale[host] / fscale[a] for a in range(n_axes) if (a, k) in corrections],
                     default=0.0)
-        alphas.append(own if own > 1e-12 * fscale[host] else max(other, 1e-3 * fscale[host]))
+        alphas.append(COUPLING_INNER_SCALE * max(own, other, 1e-3 * fscale[host]))
     inners = np.array([p * al for p, al in zip(inner_poly, alphas, strict=True)]).reshape(-1, 5)
     for k in range(L):
         mains[hosts[k]] = mains[hosts[k]] - inners[k]  # the host's main joint makes up for the inner joint

@@ -19,6 +19,11 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the cano
   the same axis (inner joints, quartics of the coordinate, and outer joints, quartics of an
   inner joint), whose values add to the axis's, fitted with the coordinate's other coupled
   axes by :func:`o2m.functions.fit_couplings` within MuJoCo's 6 degrees of freedom per body.
+  Where a body would need more, its joint's slides (main and extra joints) go on an
+  intermediate body ``<body>_couplings`` (1e-12 kg, no geometry) between the parent and the
+  body, at the body's reference frame, and the hinges stay on the body: translations along the
+  parent frame's axes come first in a CustomJoint, so the two compose as one joint. The report's
+  notes name each such body.
 * CoordinateCouplerConstraints become joint equalities the same way.
 * A locked coordinate, and every axis or coupled coordinate that depends only on locked
   coordinates, is folded into the fixed body transforms at its default value: exact, and
@@ -69,6 +74,15 @@ COUPLING_TARGET = {"m": 1e-5, "rad": float(np.deg2rad(0.005))}
 COUPLING_MARGIN = 0.02
 #: Degrees of freedom MuJoCo allows one body ("more than 6 dofs in body" otherwise).
 MAX_BODY_DOFS = 6
+#: A coordinate's couplings are planned with a joint's translations and rotations on bodies of
+#: their own (:meth:`MjcfBuilder._couplings_body`) when that brings the worst error, relative to
+#: :data:`COUPLING_TARGET`, below this fraction of what the joints fit on one body reach.
+COUPLING_SPLIT_GAIN = 0.5
+#: Mass (kg) and principal inertia (kg m²) of an intermediate body carrying a joint's
+#: translations: just above what MuJoCo accepts, so the model's mass and centre of mass stay
+#: OpenSim's. Its slides move the OpenSim body hanging from it, so their inertia is that body's.
+COUPLINGS_BODY_MASS = 1e-12
+COUPLINGS_BODY_INERTIA = 1e-14
 #: Armature of each extra joint of a coupled axis, as a multiple of its main joint's own inertia
 #: at the reference pose (the mass, or moment of inertia about the axis, of everything the joint
 #: moves). Several joints along one axis of one body make the mass matrix singular without
@@ -174,8 +188,10 @@ def _relative(driver: _Driver, ref: float) -> Callable[[np.ndarray], np.ndarray]
 class MjcfBuilder:
     """Builds an ``MjSpec`` from a skeleton; :func:`add_geometry` adds its geometry after."""
 
-    def __init__(self, skel: Skeleton):
+    def __init__(self, skel: Skeleton, *, plan_couplings: bool = True):
         self.skel = skel
+        #: Whether skeleton couplings get extra joints (:meth:`_plan_couplings`); else plain quartics.
+        self.plan_couplings = plan_couplings
         self.doc = skel.document
         self.spec = mujoco.MjSpec()
         self.result = BuildResult(self.spec)
@@ -197,6 +213,10 @@ class MjcfBuilder:
         self._extras_of: dict[str, list[str]] = {}
         #: The fitted couplings of the skeleton's coupled axes, by MuJoCo joint name.
         self._planned: dict[str, _PlannedAxis] = {}
+        #: Bodies whose joint's translations go on an intermediate body: (slides, hinges) they get.
+        self._split: dict[str, tuple[int, int]] = {}
+        #: Each intermediate body made for couplings, by its OpenSim body.
+        self.couplings_bodies: dict[str, str] = {}
 
     # -- coordinates -------------------------------------------------------------------
     def _base_ref(self, name: str) -> float:
@@ -309,7 +329,8 @@ class MjcfBuilder:
         spec.compiler.autolimits = True
         spec.option.timestep = 0.002
         spec.option.gravity = OSIM_TO_MJ @ self.skel.gravity
-        self._plan_couplings()
+        if self.plan_couplings:
+            self._plan_couplings()
         for joint in self._ordered_joints():
             self._add_joint(joint)
         for c in self.skel.coordinates.values():
@@ -336,10 +357,16 @@ class MjcfBuilder:
         t0 = sum((ax.value(q0) * ax.axis for ax in joint.translations), np.zeros(3))
         x_pb0 = joint.parent_frame @ Transform(pos=t0) @ Transform(rot=c_all) @ joint.child_frame.inverse()
         x_world = Transform(OSIM_TO_MJ) @ x_pb0 if joint.parent == "ground" else x_pb0
-        body = self.bodies[joint.parent].add_body(name=joint.child, pos=x_world.pos, quat=matrix_to_quat(x_world.rot))
+        parent = self.bodies[joint.parent]
+        if joint.child in self._split:
+            slides = self._couplings_body(joint, x_world)
+            body = slides.add_body(name=joint.child, pos=np.zeros(3), quat=np.array([1.0, 0, 0, 0]))
+            self.exact[("body", joint.child)] = {"pos": np.zeros(3), "quat": np.array([1.0, 0, 0, 0])}
+        else:
+            body = slides = parent.add_body(name=joint.child, pos=x_world.pos, quat=matrix_to_quat(x_world.rot))
+            self.exact[("body", joint.child)] = {"pos": x_world.pos, "quat": matrix_to_quat(x_world.rot)}
         self.bodies[joint.child] = body
         self.ground_frames[joint.child] = self.ground_frames[joint.parent] @ x_pb0
-        self.exact[("body", joint.child)] = {"pos": x_world.pos, "quat": matrix_to_quat(x_world.rot)}
         self._set_inertial(body, joint)
         moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
         for ax, kind in moving:
@@ -357,7 +384,36 @@ class MjcfBuilder:
                 axis = joint.child_frame.rot @ (after.T @ ax.axis)
                 pos = joint.child_frame.pos
                 ref = r0[i]
-            self._add_mj_joint(body, joint, ax, kind, axis, pos, ref)
+            self._add_mj_joint(slides if kind == "slide" else body, joint, ax, kind, axis, pos, ref)
+
+    def _couplings_body(self, joint: Joint, x_world: Transform) -> mujoco.MjsBody:
+        """An intermediate body between ``joint``'s parent and its child, at the child's frame at
+        the reference pose, to carry the joint's translations (slides along the parent frame's
+        axes come before the rotations in OpenSim's CustomJoint, so they compose the same way)
+        when the joints of its spline couplings would give the child more than
+        :data:`MAX_BODY_DOFS`. The child hangs from it with no offset and keeps the rotations,
+        its inertial, geometry and sites. Named ``<child>_couplings``; nearly massless
+        (:data:`COUPLINGS_BODY_MASS`)."""
+        names = set(self.skel.bodies) | set(self.couplings_bodies.values())
+        name, k = f"{joint.child}_couplings", 1
+        while name in names:
+            name, k = f"{joint.child}_couplings{k}", k + 1
+        body = self.bodies[joint.parent].add_body(name=name, pos=x_world.pos, quat=matrix_to_quat(x_world.rot))
+        self.exact[("body", name)] = {"pos": x_world.pos, "quat": matrix_to_quat(x_world.rot)}
+        body.explicitinertial = True
+        body.mass = COUPLINGS_BODY_MASS
+        body.ipos = np.zeros(3)
+        body.fullinertia = [COUPLINGS_BODY_INERTIA] * 3 + [0.0] * 3
+        self.exact[("inertial", name)] = {"pos": np.zeros(3), "mass": COUPLINGS_BODY_MASS,
+                                          "fullinertia": np.array(body.fullinertia)}
+        self.couplings_bodies[joint.child] = name
+        slides, hinges = self._split[joint.child]
+        self.result.notes.append(
+            f"body '{name}' ({COUPLINGS_BODY_MASS:g} kg) carries the translations of joint '{joint.name}' between "
+            f"'{joint.parent}' and '{joint.child}' (slides: {slides}; '{joint.child}' keeps the hinges: {hinges}): "
+            f"with the extra joints of its spline couplings one body would have {slides + hinges} degrees of "
+            f"freedom, MuJoCo allows {MAX_BODY_DOFS}")
+        return body
 
     # -- couplings beyond a quartic ------------------------------------------------------
     def _mj_joint_name(self, joint: Joint, ax: TransformAxis) -> tuple[str, bool]:
@@ -365,16 +421,17 @@ class MjcfBuilder:
         is_coord = self.coord_joint.get(ax.coordinate, (None, None))[1] is ax
         return (ax.coordinate if is_coord else f"{joint.name}_{ax.name}"), is_coord
 
-    def coupled_axes(self) -> tuple[list[_CoupledAxis], dict[str, int]]:
+    def coupled_axes(self) -> tuple[list[_CoupledAxis], dict[tuple[str, str], int]]:
         """Every moving skeleton axis that a non-linear function of an independent coordinate
         drives (transform axes and coupled coordinates), in build order; and each body's number
-        of MuJoCo joints."""
+        of moving axes of each kind, by (body, "slide" or "hinge")."""
         q0 = {name: self.ref[name] for name in self.skel.coordinates}
         out, dofs = [], {}
         for joint in self._ordered_joints():
             moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
             moving = [(ax, kind) for ax, kind in moving if not self.is_fixed(ax)]
-            dofs[joint.child] = len(moving)
+            for kind in ("slide", "hinge"):
+                dofs[joint.child, kind] = sum(k == kind for _, k in moving)
             for ax, kind in moving:
                 name, is_coord = self._mj_joint_name(joint, ax)
                 if is_coord and self.drivers[ax.coordinate].base == ax.coordinate:
@@ -403,78 +460,44 @@ class MjcfBuilder:
 
     def _plan_couplings(self) -> None:
         """Fit every coordinate's non-linear skeleton couplings together (they may share inner
-        joints) and choose their joints, within :data:`MAX_BODY_DOFS` per body.
+        joints) and choose their joints, within :data:`MAX_BODY_DOFS` per body; then choose the
+        joints whose translations get a body of their own (:meth:`_couplings_body`).
 
-        Start (when a plain quartic misses :data:`COUPLING_TARGET`): one inner joint on the body
-        with the most room and one outer joint for each axis that misses, worst first, while its
-        body has room. Then, while an axis still misses and its body has room: a new inner joint
-        on it with an outer joint (two joints), else an outer joint of an inner joint it has none
-        of yet (one joint); kept only if that axis's error drops below COUPLING_GAIN times what it
-        was and no axis of the coordinate gets worse than the worst was."""
+        Each coordinate is planned first with every body's joints on that body
+        (:meth:`_plan_group`). When an axis then still misses :data:`COUPLING_TARGET`, it is planned
+        again with a joint's translations and its rotations counted apart, each within
+        :data:`MAX_BODY_DOFS` (an intermediate body would then carry the translations), and
+        that plan is kept when its worst error relative to the target is below
+        :data:`COUPLING_SPLIT_GAIN` times the first plan's. A joint whose body then has more
+        than :data:`MAX_BODY_DOFS` is split."""
         axes, dofs = self.coupled_axes()
         by_base: dict[str, list[_CoupledAxis]] = {}
         for a in axes:
             by_base.setdefault(a.base, []).append(a)
+        weights = self._main_inertias([a.name for a in axes]) if axes else {}
+        used: dict[tuple[str, str], int] = {}  # extra joints planned so far, per (body, joint kind)
         for base, group in by_base.items():
             lo, hi = self._coupling_range(base)
-            x0 = self.ref[base]
-            fns = [a.rel for a in group]
-            targets = [COUPLING_TARGET[a.units] for a in group]
 
-            def fit(uses, hosts, start=(), fns=fns, targets=targets, lo=lo, hi=hi, x0=x0):
-                return fit_couplings(fns, lo, hi, x0, targets=targets, uses=uses, hosts=hosts, start_shapes=start,
-                                     margin=COUPLING_MARGIN)
+            def room(split: bool, group=group) -> tuple[list[object], dict[object, int]]:
+                keys: list[object] = [(a.body, a.kind) if split else a.body for a in group]
+                free = {}
+                for a, key in zip(group, keys, strict=True):
+                    kinds = (a.kind,) if split else ("slide", "hinge")
+                    free[key] = MAX_BODY_DOFS - sum(dofs.get((a.body, k), 0) + used.get((a.body, k), 0) for k in kinds)
+                return keys, free
 
-            best = fit([[] for _ in group], [])
-            uses: list[list[int]] = [[] for _ in group]
-            hosts: list[int] = []
-            room = {a.body: MAX_BODY_DOFS - dofs[a.body] for a in group}
-
-            def ratios(f: CouplingFit, targets=targets) -> list[float]:
-                return [ax.max_error / tg for ax, tg in zip(f.axes, targets, strict=True)]
-
-            missing = sorted((i for i, r in enumerate(ratios(best)) if r > 1), key=lambda i: -ratios(best)[i])
-            if missing:
-                need = {b: sum(group[i].body == b for i in missing) for b in room}
-                host_body = max(room, key=lambda b: room[b] - need[b])  # first such body on ties
-                if room[host_body] >= 1:
-                    host = next((i for i in missing if group[i].body == host_body),
-                                next(i for i, a in enumerate(group) if a.body == host_body))
-                    hosts.append(host)
-                    room[host_body] -= 1
-                    for i in missing:
-                        if room[group[i].body] >= 1:
-                            uses[i].append(0)
-                            room[group[i].body] -= 1
-                    if any(uses):
-                        best = fit(uses, hosts)
-                    else:
-                        hosts = []
-            done: set[int] = set()
-            while hosts:
-                r = ratios(best)
-                order = sorted((i for i in range(len(group)) if r[i] > 1 and i not in done), key=lambda i: -r[i])
-                move = None
-                for i in order:
-                    b = group[i].body
-                    if room[b] >= 2:
-                        move = (i, [*hosts, i], len(hosts), 2)
-                        break
-                    unused = [k for k in range(len(hosts)) if k not in uses[i]]
-                    if room[b] >= 1 and unused:
-                        move = (i, hosts, unused[0], 1)
-                        break
-                if move is None:
-                    break
-                i, new_hosts, k, cost = move
-                new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
-                trial = fit(new_uses, new_hosts, best.shapes)
-                if trial.axes[i].max_error <= COUPLING_GAIN * best.axes[i].max_error and \
-                        max(ratios(trial)) <= max(r):
-                    best, uses, hosts = trial, new_uses, list(new_hosts)
-                    room[group[i].body] -= cost
-                else:
-                    done.add(i)
+            weight = [weights.get(a.name, 1.0) for a in group]
+            best = self._plan_group(group, *room(False), lo, hi, weight)
+            worst = max(ax.max_error / COUPLING_TARGET[a.units] for ax, a in zip(best.axes, group, strict=True))
+            if worst > 1:
+                split = self._plan_group(group, *room(True), lo, hi, weight)
+                split_worst = max(ax.max_error / COUPLING_TARGET[a.units]
+                                  for ax, a in zip(split.axes, group, strict=True))
+                if split_worst < COUPLING_SPLIT_GAIN * worst:
+                    best = split
+            for i, a in enumerate(group):
+                used[a.body, a.kind] = used.get((a.body, a.kind), 0) + best.extra_joints(i)
             counts: dict[str, int] = {}
             inner_names = []
             for h in best.hosts:
@@ -482,11 +505,118 @@ class MjcfBuilder:
                 inner_names.append(f"{group[h].name}_inner{counts[group[h].name]}")
             for i, a in enumerate(group):
                 self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi)
+        for body in {b for b, _ in dofs}:
+            total = sum(dofs.get((body, k), 0) + used.get((body, k), 0) for k in ("slide", "hinge"))
+            if total > MAX_BODY_DOFS:
+                self._split[body] = (dofs.get((body, "slide"), 0) + used.get((body, "slide"), 0),
+                                     dofs.get((body, "hinge"), 0) + used.get((body, "hinge"), 0))
+
+    def _plan_group(self, group: list[_CoupledAxis], keys: list[object], room: dict[object, int],
+                    lo: float, hi: float, weight: list[float]) -> CouplingFit:
+        """The coupling fit of one coordinate's coupled axes ``group``, axis i's extra joints
+        counted against ``room[keys[i]]`` (the degrees of freedom left where they would go).
+
+        MuJoCo softens a joint equality by the sum of its two joints' inverse weights
+        (``dof_invweight0``, whatever their units), so an inner joint needs at least the
+        armature of the outer joints it drives (:meth:`_set_extra_armature`): an outer slide of
+        the tibia driven by an inner hinge of the light patella sagged 1.5 mm under the tibia's
+        weight. That costs little on a slide, which moves millimetres (6 kg on a knee's inner
+        slide adds 1e-5 kg m² to the knee), but much on a hinge, which moves a tenth of a radian:
+        so an axis drives outer joints only from inner slides or from inner hinges of axes at
+        least as heavy (``weight``: each main joint's own inertia, :meth:`_main_inertias`).
+
+        Start (when a plain quartic misses :data:`COUPLING_TARGET`): one inner joint on the
+        heaviest axis that misses and has room (the most room on ties) and one outer joint for
+        each axis that misses, worst first, while there is room. Then, while an axis still misses
+        and has room: a new inner joint on it with an outer joint (two joints), else an outer
+        joint of an inner joint it has none of yet (one joint); kept only if that axis's error
+        drops below COUPLING_GAIN times what it was and no axis of the coordinate gets worse than
+        the worst was."""
+        room = dict(room)
+
+        def may_use(i: int, host: int) -> bool:
+            return group[host].kind == "slide" or weight[host] >= (1 - 1e-6) * weight[i]
+
+        x0 = self.ref[group[0].base]
+        fns = [a.rel for a in group]
+        targets = [COUPLING_TARGET[a.units] for a in group]
+
+        def fit(uses, hosts, start=()):
+            return fit_couplings(fns, lo, hi, x0, targets=targets, uses=uses, hosts=hosts, start_shapes=start,
+                                 margin=COUPLING_MARGIN)
+
+        def ratios(f: CouplingFit) -> list[float]:
+            return [ax.max_error / tg for ax, tg in zip(f.axes, targets, strict=True)]
+
+        best = fit([[] for _ in group], [])
+        uses: list[list[int]] = [[] for _ in group]
+        hosts: list[int] = []
+        missing = sorted((i for i, r in enumerate(ratios(best)) if r > 1), key=lambda i: -ratios(best)[i])
+        candidates = [i for i in missing if room[keys[i]] >= 1]
+        if candidates:
+            need = {b: sum(keys[i] == b for i in missing) for b in room}
+            heaviest = max(weight[i] for i in candidates)
+            candidates = [i for i in candidates if weight[i] >= (1 - 1e-6) * heaviest]
+            host = max(candidates, key=lambda i: room[keys[i]] - need[keys[i]])  # the worst on ties
+            hosts.append(host)
+            room[keys[host]] -= 1
+            for i in missing:
+                if room[keys[i]] >= 1 and may_use(i, host):
+                    uses[i].append(0)
+                    room[keys[i]] -= 1
+            if any(uses):
+                best = fit(uses, hosts)
+            else:
+                hosts = []
+        done: set[int] = set()
+        while hosts:
+            r = ratios(best)
+            order = sorted((i for i in range(len(group)) if r[i] > 1 and i not in done), key=lambda i: -r[i])
+            move = None
+            for i in order:
+                b = keys[i]
+                if room[b] >= 2:
+                    move = (i, [*hosts, i], len(hosts), 2)
+                    break
+                unused = [k for k in range(len(hosts)) if k not in uses[i] and may_use(i, hosts[k])]
+                if room[b] >= 1 and unused:
+                    move = (i, hosts, unused[0], 1)
+                    break
+            if move is None:
+                break
+            i, new_hosts, k, cost = move
+            new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
+            trial = fit(new_uses, new_hosts, best.shapes)
+            if trial.axes[i].max_error <= COUPLING_GAIN * best.axes[i].max_error and \
+                    max(ratios(trial)) <= max(r):
+                best, uses, hosts = trial, new_uses, list(new_hosts)
+                room[keys[i]] -= cost
+            else:
+                done.add(i)
+        return best
+
+    def _main_inertias(self, joints: list[str]) -> dict[str, float]:
+        """Each of ``joints``' own inertia (kg or kg m², the diagonal of the mass matrix) at the
+        reference pose in the skeleton with plain quartic couplings; {} if it does not compile."""
+        plain = MjcfBuilder(self.skel, plan_couplings=False)
+        plain.build()
+        try:
+            m = plain.spec.compile()
+        except ValueError:
+            return {}
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        inertia = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, inertia)
+        dofs = {j: int(m.jnt_dofadr[m.joint(j).id]) for j in joints}
+        return {j: float(inertia[k, k]) for j, k in dofs.items()}
 
     def _set_extra_armature(self) -> None:
         """Give every extra joint of a coupled axis :data:`COUPLING_ARMATURE` times the main
         joint's own inertia at the reference pose (the skeleton compiled as built so far), and
-        add to each axis's approximation how much its extra joints add to the inertia of its
+        an inner joint at least the largest armature of the outer joints it drives (MuJoCo
+        softens their equalities by the inner joint's inverse weight; see :meth:`_plan_group`).
+        Add to each axis's approximation how much its extra joints add to the inertia of its
         coordinate at most: Σ armature (d joint / d coordinate)² over the coordinate's range."""
         mains = self._extras_of
         if not mains:
@@ -499,29 +629,40 @@ class MjcfBuilder:
         mujoco.mj_forward(m, d)
         inertia = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, inertia)
-        approx = {a.joint: a for a in self.result.approximations if a.joint}
+        poly = np.polynomial.polynomial
+        armature: dict[str, float] = {}
         for main, recs in mains.items():
             dof = int(m.jnt_dofadr[m.joint(main).id])
-            armature = COUPLING_ARMATURE * float(inertia[dof, dof] - m.dof_armature[dof])
             for name in recs:
-                self.spec.joint(name).armature = armature
-            planned = self._planned[main]
-            fit, i = planned.fit, planned.index
+                armature[name] = COUPLING_ARMATURE * float(inertia[dof, dof] - m.dof_armature[dof])
+        slopes: dict[str, np.ndarray] = {}  # each extra joint's d joint / d coordinate over the range
+        for planned in {id(p.axes): p for p in self._planned.values()}.values():  # each coordinate's once
+            fit = planned.fit
             x = np.linspace(planned.lo, planned.hi, 2001)
-            dx = x - fit.x0
-            dinner = [np.polynomial.polynomial.polyval(dx, np.polynomial.polynomial.polyder(c)) for c in fit.inners]
             inner = fit.inner_values(x)
-            slopes = [dinner[k] for k in range(fit.n_inner) if fit.hosts[k] == i]
-            slopes += [np.polynomial.polynomial.polyval(inner[k], np.polynomial.polynomial.polyder(c)) * dinner[k]
-                       for k, c in fit.axes[i].outers]
-            added = float(np.max(sum(armature * s ** 2 for s in slopes)))
+            dinner = [poly.polyval(x - fit.x0, poly.polyder(c)) for c in fit.inners]
+            driven = [0.0] * fit.n_inner  # the largest armature of each inner joint's outer joints
+            for i, a in enumerate(planned.axes):
+                for n, (k, c) in enumerate(fit.axes[i].outers):
+                    name = f"{a.name}_outer{n + 1}"
+                    slopes[name] = poly.polyval(inner[k], poly.polyder(c)) * dinner[k]
+                    driven[k] = max(driven[k], armature[name])
+            for k, name in enumerate(planned.inner_names):
+                slopes[name] = dinner[k]
+                armature[name] = max(armature[name], driven[k])
+        for name, value in armature.items():
+            self.spec.joint(name).armature = value
+        approx = {a.joint: a for a in self.result.approximations if a.joint}
+        for main, recs in mains.items():
+            planned = self._planned[main]
+            added = float(np.max(sum(armature[n] * slopes[n] ** 2 for n in recs)))
             a = approx.get(main)
             if a is not None:
                 unit = "kg" if m.jnt_type[m.joint(main).id] == mujoco.mjtJoint.mjJNT_SLIDE else "kg m^2"
-                base = planned.axes[i].base
+                base = planned.axes[planned.index].base
                 coord_unit = "kg m^2" if self.coord_joint[base][1].kind == "rotation" else "kg"
-                a.detail += (f"; armature {armature:.3g} {unit} each, adding at most {added:.3g} {coord_unit} "
-                             f"to '{base}'")
+                arms = ", ".join(f"{armature[n]:.3g}" for n in recs)
+                a.detail += f"; armature {arms} {unit}, adding at most {added:.3g} {coord_unit} to '{base}'"
 
     def _set_inertial(self, body: mujoco.MjsBody, joint: Joint) -> None:
         b = self.skel.bodies[joint.child]
