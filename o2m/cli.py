@@ -108,11 +108,17 @@ def cmd_paper(a: argparse.Namespace) -> int:
     data = Path(a.data)
     out = Path(a.out)
     quick = a.quick
+    executor = None
+    if a.dask:
+        from distributed import Client  # pip install -e .[cluster]
+
+        executor = Client(a.dask).get_executor()
+        print(f"      OpenSim runs and CMA-ES candidates go to the Dask scheduler at {a.dask}")
     if a.regenerate_opensim:
         if quick:
             data = out / "quick-data"
         print(f"[1/4] regenerating OpenSim references into {data} ({4 if quick else a.sets} sets)")
-        make_dataset(data, n_sets=4 if quick else a.sets, seed=a.seed, timeout=a.timeout)
+        make_dataset(data, n_sets=4 if quick else a.sets, seed=a.seed, timeout=a.timeout, executor=executor)
     else:
         print(f"[1/4] using the stored OpenSim references in {data}")
     ds = load_dataset(data)
@@ -122,7 +128,7 @@ def cmd_paper(a: argparse.Namespace) -> int:
     figures = out / "quick" / "figures" if quick else Path(a.figures)
     print(f"[2/4] converting, fitting parameters ({'quick' if quick else 'full'} mode) and corrective controls")
     summary = run_paper(data, settings=QUICK if quick else FULL, model_dir=out / "paper", results_dir=results,
-                        refit=a.refit or quick)
+                        refit=a.refit or quick, executor=executor)
     print("[3/4] timing one 1-s simulation in OpenSim and in MuJoCo")
     speed = measure_speed(str(data), n_sets=1 if quick else 5, model_dir=str(out / "paper"))
     speed_file = results.parent / "speed.json"
@@ -232,6 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--regenerate-opensim", action="store_true",
                     help="rerun the OpenSim reference simulations instead of using the stored ones")
     pp.add_argument("--refit", action="store_true", help="refit even if DATA/results/parameters.json exists")
+    pp.add_argument("--dask", metavar="SCHEDULER", help="a Dask scheduler address (tcp://host:8786) for the OpenSim "
+                    "runs and CMA-ES candidates; every worker needs o2m and the model cache at the same path")
     pp.add_argument("--sets", type=int, default=100)
     pp.add_argument("--seed", type=int, default=2020)
     pp.add_argument("--timeout", type=float, default=600.0)

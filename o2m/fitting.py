@@ -39,6 +39,7 @@ MuJoCo had to reset costs :data:`DIVERGED_COST` per DoF.
 
 from __future__ import annotations
 
+import concurrent.futures
 import copy
 import json
 import os
@@ -271,11 +272,14 @@ class TrajectoryObjective:
         dofs: the joints compared.
         penalty: weight of the squared log10 change of the parameters.
         nthread: rollout threads (default: all cores).
+        executor: a :class:`concurrent.futures.Executor` (e.g. a Dask client's
+            ``get_executor()``) that evaluates each candidate as one task (its rollouts on the
+            worker's cores); None: every candidate in one batched rollout here.
     """
 
     def __init__(self, model: mujoco.MjModel, space: ParameterSpace, initial_states: np.ndarray,
                  controls: np.ndarray, reference: np.ndarray, dofs: Sequence[str], *, penalty: float = PENALTY,
-                 nthread: int | None = None):
+                 nthread: int | None = None, executor: concurrent.futures.Executor | None = None):
         self.model, self.space = model, space
         self.initial_states = np.asarray(initial_states, float)
         self.controls = np.asarray(controls, float)
@@ -283,6 +287,7 @@ class TrajectoryObjective:
         self.dofs = list(dofs)
         self.penalty = penalty
         self.nthread = nthread
+        self.executor = executor
         self.evaluations = 0
         if self.reference.shape[:2] != (self.controls.shape[0], self.controls.shape[1] + 1):
             raise ValueError(f"reference {self.reference.shape} does not match controls {self.controls.shape}")
@@ -302,6 +307,14 @@ class TrajectoryObjective:
 
     def joint_errors(self, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean squared error per candidate, trajectory and DoF, shape (P, B, n_dofs), and diverged (P, B)."""
+        xs = np.atleast_2d(xs)
+        if self.executor is not None:
+            local = copy.copy(self)
+            local.executor = None
+            futures = [self.executor.submit(_candidate_errors, local, x) for x in xs]
+            parts = [f.result() for f in futures]
+            self.evaluations += len(xs)
+            return np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts])
         q, diverged = self.simulate(xs)
         with np.errstate(invalid="ignore", over="ignore"):
             mse = np.mean((q - self.reference[None]) ** 2, axis=2)
@@ -313,6 +326,12 @@ class TrajectoryObjective:
         xs = np.atleast_2d(xs)
         mse, _ = self.joint_errors(xs)
         return mse.sum(axis=(1, 2)) + self.penalty * np.sum((xs - self.space.x0) ** 2, axis=1)
+
+
+def _candidate_errors(objective: TrajectoryObjective, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One candidate's :meth:`TrajectoryObjective.joint_errors`, for an executor's worker."""
+    mse, diverged = objective.joint_errors(x[None])
+    return mse[0], diverged[0]
 
 
 @dataclass

@@ -127,8 +127,12 @@ def joint_mae(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> tuple[
 
 def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings = FULL,
               model_dir: str | os.PathLike[str] = "out/paper", results_dir: str | os.PathLike[str] | None = None,
-              refit: bool = False, progress: bool = True) -> dict:
-    """Fit parameters and corrections and write ``results/`` (see the module docstring); returns the summary."""
+              refit: bool = False, progress: bool = True, executor=None) -> dict:
+    """Fit parameters and corrections and write ``results/`` (see the module docstring); returns the summary.
+
+    ``executor`` (any :class:`concurrent.futures.Executor`, e.g. a Dask client's ``get_executor()``)
+    evaluates the CMA-ES candidates, one task each; by default they run here on all cores.
+    """
     from tqdm.auto import tqdm
 
     from o2m.corrections import fit_corrections
@@ -145,7 +149,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     force_seconds = time.perf_counter() - t_force
     space = parameter_space(force_model, exp.dofs, exp.muscles)
     objective = TrajectoryObjective(force_model, space, exp.init[train], exp.controls[train], exp.reference[train],
-                                    exp.dofs)
+                                    exp.dofs, executor=executor)
     held = [i for i in exp.dataset.validation if exp.dataset.ok[i]]
     validation = TrajectoryObjective(force_model, space, exp.init[held], exp.controls[held], exp.reference[held],
                                      exp.dofs) if held else None

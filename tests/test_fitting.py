@@ -186,3 +186,16 @@ def test_written_mjcf_is_the_applied_model(tmp_path):
     for f in ("dof_damping", "jnt_solref", "tendon_damping", "tendon_stiffness", "tendon_stiffnesspoly",
               "actuator_gainprm", "actuator_biasprm"):
         np.testing.assert_allclose(getattr(written, f), getattr(applied, f), rtol=1e-12, err_msg=f)
+
+
+def test_objective_through_an_executor_equals_the_local_one():
+    distributed = pytest.importorskip("distributed")
+    model, init, ctrl, ref = _setup(0.5, 0.05)
+    space = parameter_space(model, ["swing"], [])
+    xs = space.x0 + np.array([[0.0, 0.0], [0.3, 0.0], [-0.2, 0.1]])
+    local = TrajectoryObjective(model, space, init, ctrl, ref, ["swing"])(xs)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as c, \
+            distributed.Client(c) as client:
+        remote = TrajectoryObjective(model, space, init, ctrl, ref, ["swing"], executor=client.get_executor())
+        np.testing.assert_array_equal(remote(xs), local)
+        assert remote.evaluations == 3
