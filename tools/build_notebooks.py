@@ -348,12 +348,16 @@ else:
     fit = load_fit(DATA / "results" / "parameters.json")
 print(f"cost {fit.cost0:.4g} -> {fit.cost:.4g}; {fit.evaluations} candidates in {fit.wall_time:.0f} s")"""),
     code("""
-plt.plot(fit.history); plt.xlabel("generation"); plt.ylabel("best cost (rad²)"); plt.show()
-values, start = space.values(fit.x), space.values(space.x0)
-moved = sorted(space.names, key=lambda n: -abs(fit.x[space.names.index(n)] - space.x0[space.names.index(n)]))[:10]
-print("the ten parameters the fit moved most (log10 units):")
-for n in moved:
-    print(f"  {n:32s} {start[n]:10.4g} -> {values[n]:10.4g}")"""),
+plt.plot(fit.history); plt.xlabel("generation"); plt.ylabel("best training cost (rad²)"); plt.show()
+if np.array_equal(fit.x, fit.x0):
+    print(f"the fit kept its start: no candidate better on the training sets (best seen "
+          f"{fit.settings.get('best_training_cost', fit.cost):.4g}) was also better on the validation sets")
+else:
+    values, start = space.values(fit.x), space.values(space.x0)
+    moved = sorted(space.names, key=lambda n: -abs(fit.x[space.names.index(n)] - space.x0[space.names.index(n)]))
+    print("the ten parameters the fit moved most (log10 units):")
+    for n in moved[:10]:
+        print(f"  {n:32s} {start[n]:10.4g} -> {values[n]:10.4g}")"""),
     md("## Test error per joint, stage by stage"),
     code("""
 from o2m.paper import joint_mae
