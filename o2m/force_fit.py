@@ -21,7 +21,10 @@ dataset records them, :mod:`o2m.dataset`), with this force (N, positive when pul
   damped fibres makes the passive force depend on speed).
 
 ``L`` and ``V`` are MuJoCo's actuator length (m) and velocity (m/s) at OpenSim's state, so the fit
-also absorbs what the path approximations leave; ``act`` is OpenSim's activation. The fit is
+also absorbs what the path approximations leave; ``act`` is the activation the caller gives:
+:mod:`o2m.paper` gives MuJoCo's own activation for OpenSim's excitations
+(:func:`o2m.mujoco_sim.muscle_activations`), so the fit also absorbs what MuJoCo's activation
+dynamics cannot copy of OpenSim's (and, in part, an elastic tendon's lag). The fit is
 bounded least squares (``scipy.optimize.least_squares``) in units of F0 over the training states
 plus, weighted by ``static_weight``, OpenSim's static force curves at activation 1 and 0 (from
 :func:`o2m.muscles.fit_muscles`), which keep the curves sane at lengths the trajectories do not
@@ -70,7 +73,7 @@ class ForceSamples:
     Attributes:
         muscles: muscle (actuator) names, length M.
         length, velocity: MuJoCo actuator length (m) and velocity (m/s) at OpenSim's states, (N, M).
-        activation: OpenSim's activation, (N, M); force: OpenSim's tendon force (N), (N, M).
+        activation: the muscles' activation at those states, (N, M); force: OpenSim's tendon force (N), (N, M).
         trajectory: which trajectory each sample comes from, (N,).
     """
 
@@ -94,7 +97,8 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
     Args:
         coordinates, speeds: OpenSim coordinate values and speeds, shape (B, T, n_coordinates),
             rad or m (and per second).
-        activations, forces: OpenSim muscle activations and tendon forces (N), shape (B, T, M),
+        activations: muscle activations at those states (OpenSim's, or MuJoCo's for the same
+            excitations), shape (B, T, M); forces: OpenSim's tendon forces (N), shape (B, T, M);
             columns in ``muscles`` order.
     """
     data = mujoco.MjData(model)

@@ -28,8 +28,8 @@ from mujoco import rollout as mj_rollout
 
 from o2m.validate import joint_equality_plan, joint_qpos_address, pose_mujoco
 
-__all__ = ["STATE_SPEC", "Trajectories", "controls_from_excitations", "initial_state", "muscle_actuator_ids",
-           "rollout", "state_layout", "step_loop"]
+__all__ = ["STATE_SPEC", "Trajectories", "controls_from_excitations", "initial_state", "muscle_activations",
+           "muscle_actuator_ids", "rollout", "state_layout", "step_loop"]
 
 STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 
@@ -119,6 +119,36 @@ def controls_from_excitations(model: mujoco.MjModel, muscles: Sequence[str], exc
     ctrl = np.zeros((*exc.shape[:-2], exc.shape[-2] - 1, model.nu))
     ctrl[..., ids] = 0.5 * (exc[..., :-1, :] + exc[..., 1:, :])
     return ctrl
+
+
+def muscle_activations(model: mujoco.MjModel, muscles: Sequence[str], excitations: np.ndarray,
+                       initial: np.ndarray) -> np.ndarray:
+    """The activations MuJoCo's muscle dynamics give for excitations sampled every step.
+
+    Args:
+        excitations: shape (..., T, len(muscles)), as for :func:`controls_from_excitations`.
+        initial: activations at the first sample, shape (..., len(muscles)).
+    Returns:
+        shape (..., T, len(muscles)): the activation at every sample, as ``mj_step`` computes it
+        (``mju_muscleDynamics`` without smoothing, Euler), without simulating the body.
+    """
+    ids = muscle_actuator_ids(model, muscles)
+    t_act, t_deact = model.actuator_dynprm[ids, 0], model.actuator_dynprm[ids, 1]
+    if np.any(model.actuator_dynprm[ids, 2] > 0):
+        raise ValueError("muscle_activations does not model smoothed (tausmooth > 0) muscle dynamics")
+    exc = np.asarray(excitations, float)
+    ctrl = np.clip(0.5 * (exc[..., :-1, :] + exc[..., 1:, :]), 0.0, 1.0)
+    out = np.empty_like(exc)
+    act = np.asarray(initial, float).copy()
+    out[..., 0, :] = act
+    dt = model.opt.timestep
+    for k in range(ctrl.shape[-2]):
+        c = ctrl[..., k, :]
+        a = np.clip(act, 0.0, 1.0)
+        tau = np.where(c - act > 0, t_act * (0.5 + 1.5 * a), t_deact / (0.5 + 1.5 * a))
+        act = act + dt * (c - act) / np.maximum(tau, mujoco.mjMINVAL)
+        out[..., k + 1, :] = act
+    return out
 
 
 @dataclass

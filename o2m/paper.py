@@ -34,7 +34,7 @@ import numpy as np
 from o2m.dataset import Dataset, load_dataset
 from o2m.fitting import FitResult, TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit
 from o2m.force_fit import ForceFit, fit_forces, sample_states, static_curves
-from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout
+from o2m.mujoco_sim import controls_from_excitations, initial_state, muscle_activations, rollout
 
 __all__ = ["Experiment", "FULL", "QUICK", "Settings", "joint_mae", "load_experiment", "run_paper"]
 
@@ -241,8 +241,13 @@ def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[
                          "`python -m o2m dataset`")
     from o2m import models
 
-    samples = sample_states(exp.model, ds.coordinates[sets], ds.speeds[sets], ds.opensim_activations[sets],
-                            ds.tendon_forces[sets], ds.coordinate_names, ds.muscle_names, stride=settings.force_stride)
+    # MuJoCo's own activations for the sets' excitations, not OpenSim's: the fit then also absorbs
+    # what MuJoCo's activation dynamics cannot copy (and, in part, an elastic tendon's lag)
+    cols = [list(ds.activations.muscles).index(n) for n in ds.muscle_names]
+    activations = muscle_activations(exp.model, ds.muscle_names, ds.activations.values[sets][..., cols],
+                                     ds.opensim_activations[sets][:, 0, :])
+    samples = sample_states(exp.model, ds.coordinates[sets], ds.speeds[sets], activations, ds.tendon_forces[sets],
+                            ds.coordinate_names, ds.muscle_names, stride=settings.force_stride)
     osim = models.fetch_model(ds.meta["model"], progress=False)
     forces = fit_forces(exp.model, samples, static=static_curves(osim, exp.model), max_nfev=settings.force_nfev,
                         progress=progress)

@@ -11,7 +11,14 @@ import pytest
 from o2m import models
 from o2m.activations import generate_activations
 from o2m.convert import convert
-from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout, state_layout, step_loop
+from o2m.mujoco_sim import (
+    controls_from_excitations,
+    initial_state,
+    muscle_activations,
+    rollout,
+    state_layout,
+    step_loop,
+)
 from o2m.opensim_sim import OpenSimRun, run_isolated, run_many, simulate
 
 from .conftest import require_mirror
@@ -80,6 +87,17 @@ def test_controls_are_step_means_of_linear_excitations(arm26):
     assert ctrl.shape == (10, model.nu)
     ids = [model.actuator(m).id for m in ARM26_MUSCLES]
     assert np.allclose(ctrl[:, ids], (np.arange(10)[:, None] + 0.5) / 10)
+
+
+def test_muscle_activations_are_what_mujoco_steps(arm26):
+    _, model = arm26
+    sets = generate_activations(ARM26_MUSCLES, 2, seed=5, p_active=1.0)
+    exc = sets.values[:, :150]
+    a0 = np.array([[0.05] * 6, [0.3, 0.0, 0.2, 0.9, 0.1, 0.5]])
+    init = np.stack([initial_state(model, {}, activations=dict(zip(ARM26_MUSCLES, a, strict=True))) for a in a0])
+    tr = rollout(model, init, controls_from_excitations(model, ARM26_MUSCLES, exc))
+    ids = [model.actuator_actadr[model.actuator(m).id] for m in ARM26_MUSCLES]
+    np.testing.assert_allclose(muscle_activations(model, ARM26_MUSCLES, exc, a0), tr.act[:, :, ids], atol=1e-12)
 
 
 def test_initial_state_sets_named_values(arm26):
