@@ -49,6 +49,7 @@ import numpy as np
 
 from o2m.mujoco_sim import STATE_SPEC, initial_state
 from o2m.muscles import _mj_fl, _mj_fv
+from o2m.validate import joint_equality_plan
 
 __all__ = ["ForceFit", "MuscleForceFit", "ForceSamples", "TINY", "fit_forces", "pulling_force", "sample_states",
            "static_curves"]
@@ -103,13 +104,14 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
     """
     data = mujoco.MjData(model)
     ids = np.array([model.actuator(m).id for m in muscles])
+    plan = joint_equality_plan(model)
     rows = []
     for b in range(coordinates.shape[0]):
         for k in range(0, coordinates.shape[1], stride):
             if not (np.isfinite(coordinates[b, k]).all() and np.isfinite(forces[b, k]).all()):
                 continue
             x = initial_state(model, dict(zip(coordinate_names, coordinates[b, k], strict=True)),
-                              speeds=dict(zip(coordinate_names, speeds[b, k], strict=True)))
+                              speeds=dict(zip(coordinate_names, speeds[b, k], strict=True)), plan=plan)
             mujoco.mj_setState(model, data, x, STATE_SPEC)
             mujoco.mj_fwdPosition(model, data)
             mujoco.mj_fwdVelocity(model, data)

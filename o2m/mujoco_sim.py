@@ -57,16 +57,18 @@ def muscle_actuator_ids(model: mujoco.MjModel, muscles: Sequence[str]) -> np.nda
 
 def initial_state(model: mujoco.MjModel, coordinates: Mapping[str, float], *,
                   speeds: Mapping[str, float] | None = None, activations: Mapping[str, float] | None = None,
-                  time: float = 0.0) -> np.ndarray:
+                  time: float = 0.0, plan: list | None = None) -> np.ndarray:
     """Full physics state, shape (mj_stateSize(FULLPHYSICS),), from OpenSim-named values.
 
     ``coordinates`` and ``speeds`` map joint names to rad / m and rad/s / m/s; names the model
     has no joint for (e.g. locked coordinates, folded into fixed transforms) are ignored, and
     equality-driven joints take the values their equalities give, speeds by the chain rule.
-    ``activations`` maps actuator (muscle) names to activation in [0, 1].
+    ``activations`` maps actuator (muscle) names to activation in [0, 1]. ``plan`` is
+    :func:`o2m.validate.joint_equality_plan` of ``model``, computed when None (pass it when
+    building many states).
     """
     data = mujoco.MjData(model)
-    plan = joint_equality_plan(model)
+    plan = joint_equality_plan(model) if plan is None else plan
     known = {k: v for k, v in coordinates.items() if _has_joint(model, k)}
     pose_mujoco(model, data, known, plan=plan)
     qvel = np.zeros(model.nv)
