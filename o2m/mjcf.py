@@ -573,7 +573,8 @@ class MjcfBuilder:
         :meth:`_plan_group` does. Each joint then follows its plan when :meth:`couple` is called
         with ``high_order=True`` after :meth:`register_joint`; every extra joint gets ``armature``."""
         lo, hi = self._coupling_range(group[0].base)
-        best = self._plan_group(group, keys, room, lo, hi, [1.0] * len(group), targets, slope_targets)
+        best = self._plan_group(group, keys, room, lo, hi, [1.0] * len(group), targets, slope_targets,
+                                cheaper_too=True)
         inner_names = _inner_names(best, group)
         for i, a in enumerate(group):
             self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi, armature)
@@ -592,7 +593,7 @@ class MjcfBuilder:
 
     def _plan_group(self, group: list[_CoupledAxis], keys: list[object], room: dict[object, int],
                     lo: float, hi: float, weight: list[float], targets: list[float] | None = None,
-                    slope_targets: list[float] | None = None) -> CouplingFit:
+                    slope_targets: list[float] | None = None, cheaper_too: bool = False) -> CouplingFit:
         """The coupling fit of one coordinate's coupled axes ``group``, axis i's extra joints
         counted against ``room[keys[i]]`` (the degrees of freedom left where they would go).
 
@@ -616,7 +617,9 @@ class MjcfBuilder:
         ``targets`` (default :data:`COUPLING_TARGET` by unit) and ``slope_targets`` (derivative
         targets, None: the value only): an axis misses when its value error exceeds its target
         or its derivative error its slope target, by the larger ratio (the fits are then
-        derivative-aware, :func:`o2m.functions.fit_couplings`)."""
+        derivative-aware, :func:`o2m.functions.fit_couplings`). With ``cheaper_too``, an axis whose
+        new inner/outer pair is not kept tries an outer joint of an inner joint it has none of yet
+        before it is given up (path-point carriers; the skeleton's plans stay as they were)."""
         room = dict(room)
 
         def may_use(i: int, host: int) -> bool:
@@ -661,24 +664,25 @@ class MjcfBuilder:
         while hosts:
             r = ratios(best)
             order = sorted((i for i in range(len(group)) if r[i] > 1 and i not in done), key=lambda i: -r[i])
-            move = None
+            moves: list[tuple[int, list[int], int, int]] = []
             for i in order:
                 b = keys[i]
                 if room[b] >= 2:
-                    move = (i, [*hosts, i], len(hosts), 2)
-                    break
+                    moves.append((i, [*hosts, i], len(hosts), 2))
                 unused = [k for k in range(len(hosts)) if k not in uses[i] and may_use(i, hosts[k])]
                 if room[b] >= 1 and unused:
-                    move = (i, hosts, unused[0], 1)
+                    moves.append((i, hosts, unused[0], 1))
+                if moves:
                     break
-            if move is None:
+            if not moves:
                 break
-            i, new_hosts, k, cost = move
-            new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
-            trial = fit(new_uses, new_hosts, best.shapes)
-            if ratios(trial)[i] <= COUPLING_GAIN * r[i] and max(ratios(trial)) <= max(r):
-                best, uses, hosts = trial, new_uses, list(new_hosts)
-                room[keys[i]] -= cost
+            for i, new_hosts, k, cost in moves if cheaper_too else moves[:1]:
+                new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
+                trial = fit(new_uses, new_hosts, best.shapes)
+                if ratios(trial)[i] <= COUPLING_GAIN * r[i] and max(ratios(trial)) <= max(r):
+                    best, uses, hosts = trial, new_uses, list(new_hosts)
+                    room[keys[i]] -= cost
+                    break
             else:
                 done.add(i)
         return best
