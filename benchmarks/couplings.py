@@ -2,17 +2,18 @@
 
     python benchmarks/couplings.py [--models gait2354 leg6dof9musc ...] [--steps 2000]
 
-Converts each model twice: with every skeleton coupling a plain quartic (``COUPLING_TARGET``
-set to infinity) and as o2m converts it (inner and outer joints where a quartic misses the
-target). For each version it prints the degrees of freedom (nv), bodies (intermediate bodies that carry a joint's
-translations, ``<body>_couplings``, included), joints and equalities, and
-the mean ``mj_step`` time over ``--steps`` steps of constant random muscle excitation (seed 0,
-from the default pose, one thread; the best of three runs), flagged when MuJoCo found the
-simulation unstable. Then it simulates each version hanging under gravity for
-1 s (pelvis welded to the world, no excitation, from the default pose) and prints, for every
-coupled axis, the worst difference between the axis's MuJoCo value (the sum of its joints)
-and OpenSim's function of the coordinate during the simulation, and the worst equality
-violation (MuJoCo's ``efc_pos`` of the equality rows) in m or rad.
+Converts each model twice: with every skeleton coupling and path-point carrier a plain quartic
+(``COUPLING_TARGET`` and ``CARRIER_SLOPE_GATE`` set to infinity) and as o2m converts it (inner
+and outer joints where a quartic misses the target or the carrier gate). For each version it
+prints the degrees of freedom (nv), bodies (intermediate bodies that carry a joint's
+translations, ``<body>_couplings``, included), joints and equalities, and the mean ``mj_step``
+time over ``--steps`` steps of constant random muscle excitation (seed 0, from the default pose,
+one thread; the best of three runs), flagged when MuJoCo found the simulation unstable. Then it
+simulates each version hanging under gravity for 1 s (pelvis welded to the world, no excitation,
+from the default pose) and prints, for every coupled axis, the worst difference between the
+axis's MuJoCo value (the sum of its joints) and OpenSim's function of the coordinate during the
+simulation, and the worst equality violation (MuJoCo's ``efc_pos`` of the equality rows) in m
+or rad.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from o2m import mjcf, models
+from o2m import mjcf, models, tendons
 from o2m.convert import convert
 from o2m.document import load_document
 from o2m.skeleton import read_skeleton
@@ -33,13 +34,15 @@ from o2m.skeleton import read_skeleton
 
 def _convert(name: str, folder: Path, quartic: bool) -> Path:
     fetched = models.fetch_model_with_geometry(name, progress=False)
-    saved = dict(mjcf.COUPLING_TARGET)
+    saved, gate = dict(mjcf.COUPLING_TARGET), tendons.CARRIER_SLOPE_GATE
     if quartic:
         mjcf.COUPLING_TARGET.update({k: float("inf") for k in saved})
+        tendons.CARRIER_SLOPE_GATE = float("inf")
     try:
         return convert(fetched.osim, folder, geometry_dirs=[fetched.geometry_dir]).xml
     finally:
         mjcf.COUPLING_TARGET.update(saved)
+        tendons.CARRIER_SLOPE_GATE = gate
 
 
 def _step_time(xml: Path, steps: int) -> tuple[float, bool]:

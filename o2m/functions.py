@@ -1253,6 +1253,8 @@ _SEARCH_POINTS = 401
 _LAWSON_ROUNDS = 4
 _LM_ITERATIONS = 200
 _POLISHED = 3
+#: Central-difference step of the derivatives fit_couplings bounds, as a fraction of the fitted range.
+_SLOPE_STEP = 1e-6
 _LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
 _CHEB = np.polynomial.chebyshev
 _POLY = np.polynomial.polynomial
@@ -1270,6 +1272,11 @@ class AxisFit:
     grid, over [lo, hi]; ``quartic_error``: the plain quartic's worst error; ``amplitude``: the
     largest range an extra joint on this axis moves through (0 without extra joints);
     ``margin_error``: the worst error in the margins beyond [lo, hi] that the fit also covers.
+    ``slope_error`` / ``slope_rms``: the worst and RMS error of the derivative dy/dx over [lo, hi]
+    (the function's unit per x unit: for a path point's location against a rotational
+    coordinate, m/rad, directly a moment-arm error); ``quartic_slope_error`` /
+    ``quartic_slope_rms``: the plain quartic's; ``slope_target``: the derivative's target (inf
+    when the fit bounds the value only).
     """
 
     main: FloatArray
@@ -1280,6 +1287,11 @@ class AxisFit:
     target: float
     amplitude: float
     margin_error: float = 0.0
+    slope_error: float = 0.0
+    slope_rms: float = 0.0
+    quartic_slope_error: float = 0.0
+    quartic_slope_rms: float = 0.0
+    slope_target: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -1330,6 +1342,21 @@ class CouplingFit:
         main, hosted, outers = self.joint_values(axis, x)
         return _out(main + sum(hosted, np.zeros_like(main)) + sum(outers, np.zeros_like(main)))
 
+    def axis_slope(self, axis: int, x: ArrayLike) -> FloatArray:
+        """d/dx of the sum of axis ``axis``'s joints at x (any shape): the chain rule through
+        each outer joint's inner joint."""
+        dx = _as_array(x) - self.x0
+        inner = self.inner_values(x)
+        dinner = [_POLY.polyval(dx, _POLY.polyder(c)) for c in self.inners]
+        ax = self.axes[axis]
+        s = _POLY.polyval(dx, _POLY.polyder(ax.main)) * np.ones_like(dx)
+        for k in range(self.n_inner):
+            if self.hosts[k] == axis:
+                s = s + dinner[k]
+        for k, c in ax.outers:
+            s = s + _POLY.polyval(inner[k], _POLY.polyder(c)) * dinner[k]
+        return _out(s)
+
     def __call__(self, x: ArrayLike) -> FloatArray:
         """Every axis's value at x: (n_axes, *x.shape)."""
         return np.array([self.axis_value(a, x) for a in range(len(self.axes))])
@@ -1365,6 +1392,36 @@ def _unit_shape(t: FloatArray, t0: float, shape: FloatArray) -> tuple[FloatArray
     h = _shape_values(t, t0, shape)
     nk = max(float(np.max(np.abs(h))), 1e-300)
     return h / nk, nk
+
+
+def _unit_shape_slope(t: FloatArray, shape: FloatArray, nk: float) -> FloatArray:
+    """d/dt of the inner polynomial scaled as :func:`_unit_shape` scales it (by 1 / nk)."""
+    return _CHEB.chebval(t, _CHEB.chebder(np.concatenate([[0.0], shape]))) / nk
+
+
+def _axis_basis_slope(t: FloatArray, t0: float, hs: Sequence[FloatArray], dhs: Sequence[FloatArray]) -> FloatArray:
+    """d/dt of the columns of :func:`_axis_basis` (``dhs``: d h_k / dt)."""
+    v = t - t0
+    cols = [j * v ** (j - 1) for j in range(1, 5)] + [j * h ** (j - 1) * dh for h, dh in zip(hs, dhs, strict=True)
+                                                      for j in (2, 3, 4)]
+    return np.stack(cols, axis=1)
+
+
+def numeric_slope(fn: Callable[[FloatArray], FloatArray], x: FloatArray, step: float) -> FloatArray:
+    """dfn/dx at x by central differences of step ``step`` (x's unit): for the smooth functions
+    fitted here (splines, polynomials) accurate to about step² |f'''| plus round-off."""
+    x = np.asarray(x, dtype=np.float64)
+    return (np.asarray(fn(x + step), dtype=np.float64) - np.asarray(fn(x - step), dtype=np.float64)) / (2 * step)
+
+
+def polynomial_slope_errors(fn: Callable[[FloatArray], FloatArray], coef: ArrayLike, lo: float, hi: float,
+                            x0: float, n: int = 16001) -> tuple[float, float]:
+    """(worst, RMS) error over [lo, hi] of the derivative of sum_j coef[j] (x - x0)^j against
+    fn's (uniform samples; fn's by :func:`numeric_slope`)."""
+    x = np.linspace(float(lo), float(hi), n)
+    e = _POLY.polyval(x - x0, _POLY.polyder(np.asarray(coef, dtype=float))) - numeric_slope(
+        fn, x, _SLOPE_STEP * max(float(hi) - float(lo), 1e-12))
+    return float(np.max(np.abs(e))), float(np.sqrt(np.mean(e * e)))
 
 
 def _axis_basis(t: FloatArray, t0: float, hs: Sequence[FloatArray]) -> FloatArray:
@@ -1500,11 +1557,14 @@ def _lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float
         rhs += [np.zeros(2 * nb), np.full(n_outer, bound)]
     cost = np.zeros(n + nb + 1)
     cost[-1] = 1.0
-    res = linprog(cost, A_ub=np.vstack(rows), b_ub=np.concatenate(rhs),
-                  bounds=[(None, None)] * n + [(0, None)] * (nb + 1), method="highs", options=_LP_OPTIONS)
-    if res.status != 0:
-        return None
-    return res.x[:n], float(res.x[-1])
+    # HiGHS's dual simplex sometimes stops on a numerical difficulty (status 4) at these tight
+    # tolerances (a Leg6Dof9Musc patella fit did); its interior-point method then solves it
+    for method in ("highs", "highs-ipm"):
+        res = linprog(cost, A_ub=np.vstack(rows), b_ub=np.concatenate(rhs),
+                      bounds=[(None, None)] * n + [(0, None)] * (nb + 1), method=method, options=_LP_OPTIONS)
+        if res.status == 0:
+            return res.x[:n], float(res.x[-1])
+    return None
 
 
 def _power_shape(c: float, p: int) -> FloatArray:
@@ -1533,7 +1593,7 @@ _COUPLING_CACHE: dict[bytes, CouplingFit] = {}
 def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, hi: float, x0: float, *,
                   targets: Sequence[float], uses: Sequence[Sequence[int]], hosts: Sequence[int],
                   start_shapes: ArrayLike = (), n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
-                  margin: float = 0.0, seed: int = 0) -> CouplingFit:
+                  margin: float = 0.0, seed: int = 0, slope_targets: Sequence[float] | None = None) -> CouplingFit:
     """Approximate functions y_a of one variable x on [lo, hi] (the coupled axes of one
     coordinate) by sums of MuJoCo joints, each joint following a quartic joint equality.
 
@@ -1572,6 +1632,15 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     may be :data:`COUPLING_MARGIN_SLACK` times larger than inside; the errors reported are the
     ones inside [lo, hi] (the margins' in ``margin_error``).
 
+    ``slope_targets`` (one per function, its unit per x unit) makes the fits derivative-aware:
+    the derivative of each sum of joints is linear in the same coefficients, so each linear
+    program bounds, on the same samples, max(|error| / target, |d error / dx| / slope target)
+    (the derivatives of y_a by :func:`numeric_slope`; the derivative inside [lo, hi] only, not in
+    the margins), and the shapes are scored that way too (their search stays on values). A
+    path point's location against a rotational coordinate has its derivative error as a
+    moment-arm error. Without them only the value is bounded (the derivative errors are still
+    reported). The plain quartic (no inner joints) is always the value's minimax quartic.
+
     Units: x in the driving coordinate's unit (rad or m); y_a and ``targets[a]`` in axis a's.
     """
     lo, hi, x0 = float(lo), float(hi), float(x0)
@@ -1587,6 +1656,8 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     start = np.asarray(start_shapes, dtype=float).reshape(-1, 4)
     if start.shape[0] > L:
         raise ValueError("fit_couplings: more start shapes than inner joints")
+    if slope_targets is not None and len(slope_targets) != n_axes:
+        raise ValueError("fit_couplings needs one slope target per function")
 
     knots = [np.asarray(getattr(fn, "knots", np.empty(0)), dtype=float) for fn in fns]
     width = float(margin) * (hi - lo)
@@ -1602,9 +1673,13 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
 
     check = grid(8 * (n - 1) + 1)
     fc = [np.asarray(fn(check), dtype=np.float64) for fn in fns]
+    step = _SLOPE_STEP * (hi_m - lo_m)
+    dc = [numeric_slope(fn, check, step) for fn in fns]
+    slopes = [math.inf] * n_axes if slope_targets is None else [float(v) for v in slope_targets]
     # everything below sees the functions only through their values on this grid (which holds the others)
-    key = hashlib.sha256(b"".join([check.tobytes(), *(f.tobytes() for f in fc), start.tobytes(),
-                                   np.array([lo, hi, x0, n, amplitude, margin, seed, *targets, *hosts]).tobytes(),
+    key = hashlib.sha256(b"".join([check.tobytes(), *(f.tobytes() for f in fc), *(f.tobytes() for f in dc),
+                                   start.tobytes(), np.array([lo, hi, x0, n, amplitude, margin, seed, *targets,
+                                                              *hosts, *slopes]).tobytes(),
                                    repr([list(u) for u in uses]).encode()])).digest()
     if key in _COUPLING_CACHE:
         return _COUPLING_CACHE[key]
@@ -1623,36 +1698,49 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     ts_x = grid(_SEARCH_POINTS)
     ts, w_search = (ts_x - mid) / half, rows(ts_x)
     f_search = [(np.asarray(fn(ts_x), dtype=np.float64) - c) * w for fn, c, w in zip(fns, f0, weight, strict=True)]
+    # derivatives in t (x = mid + half t), each in its function's scale (fs) or its target's (f_search);
+    # ratio: the value error a derivative error of its slope target counts as (None: value only)
+    ratio = [None if math.isinf(sl) else float(tg) / sl for tg, sl in zip(targets, slopes, strict=True)]
+    ds = [numeric_slope(fn, xs, step) * half for fn in fns]
+    d_search = [numeric_slope(fn, ts_x, step) * half * w for fn, w in zip(fns, weight, strict=True)]
 
-    def lp(shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], ww: FloatArray, axis_uses,
-           polish=False):
+    def lp(shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], dd: Sequence[FloatArray],
+           ww: FloatArray, axis_uses, polish=False):
         """Per axis: (worst error weighted by ``ww``, coefficients of the column-scaled basis,
         column scales, cond). With ``polish``, the least-squares coefficients replace the linear
         program's when they respect the amplitude bound and have the smaller worst error (they
         reach round-off for a function the structure represents exactly, where the LP stops at
-        its tolerance)."""
-        hs = [_unit_shape(tt, t0, s)[0] for s in shapes]
+        its tolerance). ``dd``: each axis's derivative in t (ff's units), bounded (times
+        ``ratio``) with the values where the axis has a slope target."""
+        units = [_unit_shape(tt, t0, s) for s in shapes]
+        hs = [u[0] for u in units]
+        dhs = [_unit_shape_slope(tt, s, u[1]) for s, u in zip(shapes, units, strict=True)]
         out = []
         for a, f in enumerate(ff):
             A = _axis_basis(tt, t0, [hs[k] for k in axis_uses[a]])
             scale = np.max(np.abs(A), axis=0)
-            As = A / scale
+            As, target = A / scale * ww[:, None], f * ww
+            if ratio[a] is not None:  # the derivative's rows, in the value's units
+                dA = _axis_basis_slope(tt, t0, [hs[k] for k in axis_uses[a]], [dhs[k] for k in axis_uses[a]])
+                sw = (ww >= 1.0) * ratio[a]  # inside [lo, hi] only
+                As = np.vstack([As, dA / scale * sw[:, None]])
+                target = np.concatenate([target, dd[a] * sw])
             fsa = max(float(np.max(np.abs(f))), 1e-300)
-            got = _lp_bounded_minimax(As * ww[:, None], f * ww / fsa, len(axis_uses[a]), amplitude)
+            got = _lp_bounded_minimax(As, target / fsa, len(axis_uses[a]), amplitude)
             if got is None:
                 return None
             coef, err = got[0] * fsa, got[1] * fsa
             if polish:
-                ls = np.linalg.lstsq(As * ww[:, None], f * ww, rcond=None)[0]
+                ls = np.linalg.lstsq(As, target, rcond=None)[0]
                 sums = np.abs(ls[4:]).reshape(-1, 3).sum(axis=1) if ls.size > 4 else np.zeros(0)
-                ls_err = float(np.max(np.abs(ww * (As @ ls - f))))
-                if np.all(sums <= amplitude * fsa) and ls_err < float(np.max(np.abs(ww * (As @ coef - f)))):
+                ls_err = float(np.max(np.abs(As @ ls - target)))
+                if np.all(sums <= amplitude * fsa) and ls_err < float(np.max(np.abs(As @ coef - target))):
                     coef, err = ls, ls_err
-            out.append((err, coef, scale, float(np.linalg.cond(As))))
+            out.append((err, coef, scale, float(np.linalg.cond(A / scale))))
         return out
 
     def score(shapes, axis_uses) -> float:
-        got = lp(shapes, ts, f_search, w_search, axis_uses)  # f_search is in units of each target already
+        got = lp(shapes, ts, f_search, d_search, w_search, axis_uses)  # f_search is in units of each target already
         return math.inf if got is None else max(g[0] for g in got)
 
     rng = np.random.default_rng(seed)
@@ -1700,7 +1788,7 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
         shapes = unit_rows(best_flat)
 
     # final fit on the full grid
-    got = lp(shapes, t, fs, w_fit, [list(u) for u in uses], polish=True) if L else None
+    got = lp(shapes, t, fs, ds, w_fit, [list(u) for u in uses], polish=True) if L else None
     if L and got is None:
         raise ValueError("fit_couplings: the linear program failed")
     units = [_unit_shape(t, t0, s) for s in shapes]
@@ -1745,11 +1833,15 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     axes = []
     for a in range(n_axes):
         err = draft.axis_value(a, check) - fc[a]
+        slope = (draft.axis_slope(a, check) - dc[a])[inside]
+        q_slope = (_POLY.polyval(check - x0, _POLY.polyder(quartics[a].coef)) - dc[a])[inside]
         _, hosted, outers = draft.joint_values(a, check)
         amp = max([float(np.ptp(v)) for v in hosted + outers], default=0.0)
         axes.append(AxisFit(mains[a], tuple(outers_by_axis[a]), float(np.max(np.abs(err[inside]))),
                             float(np.sqrt(np.mean(err[inside] ** 2))), quartics[a].max_error, float(targets[a]), amp,
-                            float(np.max(np.abs(err[~inside]), initial=0.0))))
+                            float(np.max(np.abs(err[~inside]), initial=0.0)),
+                            float(np.max(np.abs(slope))), float(np.sqrt(np.mean(slope ** 2))),
+                            float(np.max(np.abs(q_slope))), float(np.sqrt(np.mean(q_slope ** 2))), slopes[a]))
     fit = CouplingFit(**{**draft.__dict__, "axes": tuple(axes)})
     _COUPLING_CACHE[key] = fit
     return fit
@@ -1757,21 +1849,29 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
 
 def fit_coupling(fn: Callable[[FloatArray], FloatArray], lo: float, hi: float, x0: float, *,
                  target: float, max_inner: int = 3, n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
-                 margin: float = 0.0, seed: int = 0) -> CouplingFit:
+                 margin: float = 0.0, seed: int = 0, slope_target: float | None = None) -> CouplingFit:
     """One function as a sum of joints (:func:`fit_couplings` with one axis carrying all its inner
     joints): the plain quartic when its error is at most ``target``; otherwise K = 1, 2, ...
     ``max_inner`` inner/outer pairs, each K starting from K - 1's shapes, stopping at the first
     K that meets ``target`` (fewest extra joints), and only as long as each pair brings the
     error below :data:`COUPLING_GAIN` times the last; so the error never grows with
-    ``max_inner``. Units as :func:`fit_couplings`."""
-    kw = {"n": n, "amplitude": amplitude, "margin": margin, "seed": seed}
+    ``max_inner``. With ``slope_target`` the error is max(error / target, slope error / slope
+    target) and the fits are derivative-aware (see :func:`fit_couplings`). Units as
+    :func:`fit_couplings`."""
+    kw = {"n": n, "amplitude": amplitude, "margin": margin, "seed": seed,
+          "slope_targets": None if slope_target is None else [slope_target]}
+
+    def ratio(f: CouplingFit) -> float:
+        ax = f.axes[0]
+        return max(ax.max_error / max(target, 1e-300), ax.slope_error / slope_target if slope_target else 0.0)
+
     best = fit_couplings([fn], lo, hi, x0, targets=[target], uses=[[]], hosts=[], **kw)
     for k in range(1, max_inner + 1):
-        if best.axes[0].max_error <= target:
+        if ratio(best) <= 1:
             break
         fit = fit_couplings([fn], lo, hi, x0, targets=[target], uses=[list(range(k))], hosts=[0] * k,
                             start_shapes=best.shapes, **kw)
-        if fit.axes[0].max_error > COUPLING_GAIN * best.axes[0].max_error:
+        if ratio(fit) > COUPLING_GAIN * ratio(best):
             break
         best = fit
     return best

@@ -25,6 +25,9 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the cano
   parent frame's axes come first in a CustomJoint, so the two compose as one joint. The report's
   notes name each such body.
 * CoordinateCouplerConstraints become joint equalities the same way.
+* Joints added by other builders (path-point carriers, :mod:`o2m.tendons`) can be planned the
+  same way (:meth:`MjcfBuilder.plan_extra_couplings`); every coupling's approximation records
+  the errors of its value and of its derivative (d joint / d coordinate).
 * A locked coordinate, and every axis or coupled coordinate that depends only on locked
   coordinates, is folded into the fixed body transforms at its default value: exact, and
   stiffer in simulation than a soft MuJoCo equality would be. It then has no MuJoCo joint.
@@ -33,6 +36,7 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the cano
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,7 +46,7 @@ import numpy as np
 from lxml import etree
 
 from . import geometry
-from .functions import COUPLING_GAIN, AxisFit, CouplingFit, fit_couplings, fit_polynomial
+from .functions import COUPLING_GAIN, AxisFit, CouplingFit, fit_couplings, fit_polynomial, polynomial_slope_errors
 from .skeleton import Joint, Skeleton, Skipped, TransformAxis
 from .transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat, quat_to_matrix
 
@@ -65,6 +69,15 @@ _LINEAR_SAMPLES = 401
 #: and outer joints (:func:`o2m.functions.fit_couplings`) until they are within it, until more
 #: joints stop helping, or until their bodies are full (:data:`MAX_BODY_DOFS`).
 COUPLING_TARGET = {"m": 1e-5, "rad": float(np.deg2rad(0.005))}
+#: Derivative target of a skeleton coupling (per unit of the axis, per unit of its coordinate), or
+#: None: fitted to the value only (see :func:`o2m.functions.fit_couplings`'s ``slope_targets``).
+#: A knee translation's derivative error is a moment-arm error of every knee muscle. None,
+#: measured: with 2e-4 m/rad on the slides, Gait10dof18musc's knee translations reach 0.69 and
+#: 0.51 mm/rad worst (1.16 and 1.44 fitted to the value) for 0.041 mm (0.035) and its
+#: hamstrings' and gastrocnemius' moment-arm RMS falls from 0.24-0.32 to 0.19-0.24 mm (p95 of all
+#: pairs 0.51 -> 0.50 mm); but Leg6Dof9Musc's plan changes (no intermediate bodies: 40 -> 33 dofs)
+#: and its patella translations miss 0.1 mm (0.13 and 0.22 mm at 2e-4 and 1e-4 m/rad).
+COUPLING_SLOPE_TARGET: dict[str, float | None] = {"m": None, "rad": None}
 #: Skeleton couplings with extra joints are also fitted this fraction of their coordinate's range
 #: beyond each end, with :data:`o2m.functions.COUPLING_MARGIN_SLACK` times the error allowed
 #: there: a joint pressing into a soft limit leaves its range a little (Leg6Dof9Musc's knee,
@@ -105,6 +118,12 @@ class Approximation:
     units: str
     detail: str = ""
     joint: str = ""  # the MuJoCo joint whose motion is approximated, if any
+    #: For a coupling: the worst and RMS error of d joint / d coordinate over the coordinate's
+    #: range, in ``slope_units`` (for a path point's location against an angle, m/rad: a
+    #: moment-arm error); None otherwise.
+    slope_error: float | None = None
+    slope_rms: float | None = None
+    slope_units: str = ""
 
 
 @dataclass
@@ -153,6 +172,38 @@ class _PlannedAxis:
     inner_names: list[str]  # the fit's inner joints, in order
     lo: float
     hi: float
+    #: armature (kg or kg m²) of each extra joint, set when planned (path-point carriers); None:
+    #: set by :meth:`MjcfBuilder._set_extra_armature` once the skeleton is built
+    armature: float | None = None
+
+
+def _inner_names(fit: CouplingFit, group: list[_CoupledAxis]) -> list[str]:
+    """The MuJoCo names of a fit's inner joints: ``<host joint>_inner<k>``."""
+    counts: dict[str, int] = {}
+    names = []
+    for h in fit.hosts:
+        counts[group[h].name] = counts.get(group[h].name, 0) + 1
+        names.append(f"{group[h].name}_inner{counts[group[h].name]}")
+    return names
+
+
+def _extra_slopes(planned: _PlannedAxis, x: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, int]]:
+    """d joint / d coordinate at x of every extra joint of a coordinate's plan, by name, and the
+    inner joint (index) each outer joint is driven by."""
+    poly = np.polynomial.polynomial
+    fit = planned.fit
+    inner = fit.inner_values(x)
+    dinner = [poly.polyval(x - fit.x0, poly.polyder(c)) for c in fit.inners]
+    slopes: dict[str, np.ndarray] = {}
+    driver: dict[str, int] = {}
+    for i, a in enumerate(planned.axes):
+        for n, (k, c) in enumerate(fit.axes[i].outers):
+            name = f"{a.name}_outer{n + 1}"
+            slopes[name] = poly.polyval(inner[k], poly.polyder(c)) * dinner[k]
+            driver[name] = k
+    for k, name in enumerate(planned.inner_names):
+        slopes[name] = dinner[k]
+    return slopes, driver
 
 
 def _linear(fn: Callable[[np.ndarray], np.ndarray], lo: float, hi: float) -> tuple[float, float] | None:
@@ -488,21 +539,23 @@ class MjcfBuilder:
                 return keys, free
 
             weight = [weights.get(a.name, 1.0) for a in group]
-            best = self._plan_group(group, *room(False), lo, hi, weight)
-            worst = max(ax.max_error / COUPLING_TARGET[a.units] for ax, a in zip(best.axes, group, strict=True))
+            slopes = [COUPLING_SLOPE_TARGET[a.units] for a in group]
+            slopes = None if all(v is None for v in slopes) else [math.inf if v is None else v for v in slopes]
+
+            def worst_of(f: CouplingFit, group=group, slopes=slopes) -> float:
+                return max(max(ax.max_error / COUPLING_TARGET[a.units], ax.slope_error / slopes[i] if slopes else 0.0)
+                           for i, (ax, a) in enumerate(zip(f.axes, group, strict=True)))
+
+            best = self._plan_group(group, *room(False), lo, hi, weight, slope_targets=slopes)
+            worst = worst_of(best)
             if worst > 1:
-                split = self._plan_group(group, *room(True), lo, hi, weight)
-                split_worst = max(ax.max_error / COUPLING_TARGET[a.units]
-                                  for ax, a in zip(split.axes, group, strict=True))
+                split = self._plan_group(group, *room(True), lo, hi, weight, slope_targets=slopes)
+                split_worst = worst_of(split)
                 if split_worst < COUPLING_SPLIT_GAIN * worst:
                     best = split
             for i, a in enumerate(group):
                 used[a.body, a.kind] = used.get((a.body, a.kind), 0) + best.extra_joints(i)
-            counts: dict[str, int] = {}
-            inner_names = []
-            for h in best.hosts:
-                counts[group[h].name] = counts.get(group[h].name, 0) + 1
-                inner_names.append(f"{group[h].name}_inner{counts[group[h].name]}")
+            inner_names = _inner_names(best, group)
             for i, a in enumerate(group):
                 self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi)
         for body in {b for b, _ in dofs}:
@@ -511,8 +564,36 @@ class MjcfBuilder:
                 self._split[body] = (dofs.get((body, "slide"), 0) + used.get((body, "slide"), 0),
                                      dofs.get((body, "hinge"), 0) + used.get((body, "hinge"), 0))
 
+    def plan_extra_couplings(self, group: list[_CoupledAxis], keys: list[object], room: dict[object, int], *,
+                             targets: list[float], slope_targets: list[float] | None,
+                             armature: float) -> CouplingFit:
+        """Plan couplings beyond a quartic for axes that callers outside this class add (path-point
+        carriers): the axes ``group`` of one coordinate, all equally heavy, axis i's extra joints
+        counted against ``room[keys[i]]``, fitted to ``targets`` and ``slope_targets`` as
+        :meth:`_plan_group` does. Each joint then follows its plan when :meth:`couple` is called
+        with ``high_order=True`` after :meth:`register_joint`; every extra joint gets ``armature``."""
+        lo, hi = self._coupling_range(group[0].base)
+        best = self._plan_group(group, keys, room, lo, hi, [1.0] * len(group), targets, slope_targets,
+                                cheaper_too=True)
+        inner_names = _inner_names(best, group)
+        for i, a in enumerate(group):
+            self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi, armature)
+        return best
+
+    def register_joint(self, name: str, body: mujoco.MjsBody, jtype: mujoco.mjtJoint, axis: np.ndarray,
+                       pos: np.ndarray) -> None:
+        """Record a joint added outside this class (body, type, axis, anchor), so that the extra
+        joints of its planned coupling can be added beside it."""
+        self._joint_frames[name] = (body, jtype, np.asarray(axis, dtype=float), np.asarray(pos, dtype=float))
+
+    def pop_extra_records(self, joint: str) -> list[JointRecord]:
+        """The records of the extra joints :meth:`couple` made for ``joint`` (a caller outside
+        this class lists them after the joint's own), once."""
+        return self._extra_records.pop(joint, [])
+
     def _plan_group(self, group: list[_CoupledAxis], keys: list[object], room: dict[object, int],
-                    lo: float, hi: float, weight: list[float]) -> CouplingFit:
+                    lo: float, hi: float, weight: list[float], targets: list[float] | None = None,
+                    slope_targets: list[float] | None = None, cheaper_too: bool = False) -> CouplingFit:
         """The coupling fit of one coordinate's coupled axes ``group``, axis i's extra joints
         counted against ``room[keys[i]]`` (the degrees of freedom left where they would go).
 
@@ -531,7 +612,14 @@ class MjcfBuilder:
         and has room: a new inner joint on it with an outer joint (two joints), else an outer
         joint of an inner joint it has none of yet (one joint); kept only if that axis's error
         drops below COUPLING_GAIN times what it was and no axis of the coordinate gets worse than
-        the worst was."""
+        the worst was.
+
+        ``targets`` (default :data:`COUPLING_TARGET` by unit) and ``slope_targets`` (derivative
+        targets, None: the value only): an axis misses when its value error exceeds its target
+        or its derivative error its slope target, by the larger ratio (the fits are then
+        derivative-aware, :func:`o2m.functions.fit_couplings`). With ``cheaper_too``, an axis whose
+        new inner/outer pair is not kept tries an outer joint of an inner joint it has none of yet
+        before it is given up (path-point carriers; the skeleton's plans stay as they were)."""
         room = dict(room)
 
         def may_use(i: int, host: int) -> bool:
@@ -539,14 +627,18 @@ class MjcfBuilder:
 
         x0 = self.ref[group[0].base]
         fns = [a.rel for a in group]
-        targets = [COUPLING_TARGET[a.units] for a in group]
+        if targets is None:
+            targets = [COUPLING_TARGET[a.units] for a in group]
 
         def fit(uses, hosts, start=()):
             return fit_couplings(fns, lo, hi, x0, targets=targets, uses=uses, hosts=hosts, start_shapes=start,
-                                 margin=COUPLING_MARGIN)
+                                 margin=COUPLING_MARGIN, slope_targets=slope_targets)
 
         def ratios(f: CouplingFit) -> list[float]:
-            return [ax.max_error / tg for ax, tg in zip(f.axes, targets, strict=True)]
+            if slope_targets is None:
+                return [ax.max_error / tg for ax, tg in zip(f.axes, targets, strict=True)]
+            return [max(ax.max_error / tg, ax.slope_error / st)
+                    for ax, tg, st in zip(f.axes, targets, slope_targets, strict=True)]
 
         best = fit([[] for _ in group], [])
         uses: list[list[int]] = [[] for _ in group]
@@ -572,25 +664,25 @@ class MjcfBuilder:
         while hosts:
             r = ratios(best)
             order = sorted((i for i in range(len(group)) if r[i] > 1 and i not in done), key=lambda i: -r[i])
-            move = None
+            moves: list[tuple[int, list[int], int, int]] = []
             for i in order:
                 b = keys[i]
                 if room[b] >= 2:
-                    move = (i, [*hosts, i], len(hosts), 2)
-                    break
+                    moves.append((i, [*hosts, i], len(hosts), 2))
                 unused = [k for k in range(len(hosts)) if k not in uses[i] and may_use(i, hosts[k])]
                 if room[b] >= 1 and unused:
-                    move = (i, hosts, unused[0], 1)
+                    moves.append((i, hosts, unused[0], 1))
+                if moves:
                     break
-            if move is None:
+            if not moves:
                 break
-            i, new_hosts, k, cost = move
-            new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
-            trial = fit(new_uses, new_hosts, best.shapes)
-            if trial.axes[i].max_error <= COUPLING_GAIN * best.axes[i].max_error and \
-                    max(ratios(trial)) <= max(r):
-                best, uses, hosts = trial, new_uses, list(new_hosts)
-                room[keys[i]] -= cost
+            for i, new_hosts, k, cost in moves if cheaper_too else moves[:1]:
+                new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
+                trial = fit(new_uses, new_hosts, best.shapes)
+                if ratios(trial)[i] <= COUPLING_GAIN * r[i] and max(ratios(trial)) <= max(r):
+                    best, uses, hosts = trial, new_uses, list(new_hosts)
+                    room[keys[i]] -= cost
+                    break
             else:
                 done.add(i)
         return best
@@ -629,7 +721,6 @@ class MjcfBuilder:
         mujoco.mj_forward(m, d)
         inertia = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, inertia)
-        poly = np.polynomial.polynomial
         armature: dict[str, float] = {}
         for main, recs in mains.items():
             dof = int(m.jnt_dofadr[m.joint(main).id])
@@ -637,18 +728,12 @@ class MjcfBuilder:
                 armature[name] = COUPLING_ARMATURE * float(inertia[dof, dof] - m.dof_armature[dof])
         slopes: dict[str, np.ndarray] = {}  # each extra joint's d joint / d coordinate over the range
         for planned in {id(p.axes): p for p in self._planned.values()}.values():  # each coordinate's once
-            fit = planned.fit
-            x = np.linspace(planned.lo, planned.hi, 2001)
-            inner = fit.inner_values(x)
-            dinner = [poly.polyval(x - fit.x0, poly.polyder(c)) for c in fit.inners]
-            driven = [0.0] * fit.n_inner  # the largest armature of each inner joint's outer joints
-            for i, a in enumerate(planned.axes):
-                for n, (k, c) in enumerate(fit.axes[i].outers):
-                    name = f"{a.name}_outer{n + 1}"
-                    slopes[name] = poly.polyval(inner[k], poly.polyder(c)) * dinner[k]
-                    driven[k] = max(driven[k], armature[name])
+            own, driver = _extra_slopes(planned, np.linspace(planned.lo, planned.hi, 2001))
+            slopes.update(own)
+            driven = [0.0] * planned.fit.n_inner  # the largest armature of each inner joint's outer joints
+            for name, k in driver.items():
+                driven[k] = max(driven[k], armature[name])
             for k, name in enumerate(planned.inner_names):
-                slopes[name] = dinner[k]
                 armature[name] = max(armature[name], driven[k])
         for name, value in armature.items():
             self.spec.joint(name).armature = value
@@ -735,7 +820,9 @@ class MjcfBuilder:
         adds itself and has planned in :meth:`_plan_couplings`), it is the planned main quartic,
         and the joint's extra joints follow it on the same body and axis
         (:meth:`_add_extra_joints`). Callers outside this class (path-point carriers) get the
-        plain quartic by default."""
+        plain quartic unless they planned the joint (:meth:`plan_extra_couplings`,
+        :meth:`register_joint`) and pass ``high_order``. The approximation recorded gives the
+        value's and the derivative's (d joint / d coordinate) errors."""
         base = driver.base
         if base not in self.coord_joint:
             raise self.doc.error(source, f"depends on coordinate '{base}', which has no MuJoCo joint")
@@ -746,42 +833,60 @@ class MjcfBuilder:
         rel = _relative(driver, ref)
         lin = _linear(rel, lo, hi)
         units = "rad" if rec.kind == "hinge" else "m"
+        base_units = "rad" if base_kind == "rotation" else "m"
+        slope_units = f"{units}/{base_units}"
         extra: list[tuple[str, str, np.ndarray, str]] = []
+        planned = self._planned.get(rec.name) if high_order else None
         if lin is not None:
             slope, icpt = lin
             coef = np.array([icpt + slope * base_ref, slope, 0.0, 0.0, 0.0])
             rec.relation = "linear"
-        elif not high_order or rec.name not in self._planned:
+        elif planned is None:
             fit = fit_polynomial(rel, lo, hi, base_ref, degree=4, exact_at_x0=True)
             coef = np.asarray(fit.coef, dtype=float)
             rec.relation = "quartic fit"
+            s_max, s_rms = polynomial_slope_errors(rel, coef, lo, hi, base_ref)
             self.result.approximations.append(Approximation(
                 source.tag, source.get("name", rec.name),
                 f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]",
-                float(fit.max_error), units, f"rms {fit.rms_error:.3g} {units}", joint=rec.name))
+                float(fit.max_error), units, f"rms {fit.rms_error:.3g} {units}; slope error {s_max:.3g} "
+                f"(rms {s_rms:.3g}) {slope_units}", joint=rec.name, slope_error=s_max, slope_rms=s_rms,
+                slope_units=slope_units))
         else:
-            planned = self._planned[rec.name]
             cfit, ax = planned.fit, planned.fit.axes[planned.index]
             coef = np.asarray(ax.main, dtype=float)
             rec.relation = "quartic fit"
             what = f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]"
-            detail = f"rms {ax.rms_error:.3g} {units}"
+            detail = f"rms {ax.rms_error:.3g} {units}; slope error {ax.slope_error:.3g} (rms {ax.slope_rms:.3g}) " \
+                     f"{slope_units}"
             extra = self._extra_joints(rec, planned)
             if extra:
                 rec.relation = f"quartic fit + {len(extra)} extra joints"
                 what = (f"MuJoCo joint '{rec.name}' and its extra joints {', '.join(e[0] for e in extra)} follow "
-                        f"'{base}' by a {cfit.structure(planned.index)}, fitted over [{lo:.4g}, {hi:.4g}]")
+                        f"'{base}' by a {cfit.structure(planned.index)}, fitted over [{lo:.4g}, {hi:.4g}]"
+                        + (f" to {ax.target:.3g} {units} and a slope error of {ax.slope_target:.3g} {slope_units}"
+                           if np.isfinite(ax.slope_target) else ""))
                 margin = planned.fit.margin
-                base_units = "rad" if base_kind == "rotation" else "m"
-                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}; up to {margin:.3g} {base_units} "
-                           f"beyond the range: {ax.margin_error:.3g} {units}; the extra joints move through at most "
-                           f"{ax.amplitude:.3g} {units}")
+                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}, slope error "
+                           f"{ax.quartic_slope_error:.3g} (rms {ax.quartic_slope_rms:.3g}) {slope_units}; up to "
+                           f"{margin:.3g} {base_units} beyond the range: {ax.margin_error:.3g} {units}; the extra "
+                           f"joints move through at most {ax.amplitude:.3g} {units}")
             self.result.approximations.append(Approximation(
-                source.tag, source.get("name", rec.name), what, float(ax.max_error), units, detail, joint=rec.name))
+                source.tag, source.get("name", rec.name), what, float(ax.max_error), units, detail, joint=rec.name,
+                slope_error=float(ax.slope_error), slope_rms=float(ax.slope_rms), slope_units=slope_units))
         rec.driven_by = base
         self._equality(rec.name, base, coef, f"{rec.name}_from_{base}")
         if extra:
-            self._add_extra_joints(rec, extra, source)
+            self._add_extra_joints(rec, extra, source, planned.armature)
+            if planned.armature is not None:  # planned with its armature: what it adds to the coordinate, now
+                x = np.linspace(planned.lo, planned.hi, 2001)
+                slopes = _extra_slopes(planned, x)[0]
+                added = float(np.max(sum(planned.armature * slopes[e[0]] ** 2 for e in extra)))
+                coord_unit = "kg m^2" if base_kind == "rotation" else "kg"
+                unit = "kg" if rec.kind == "slide" else "kg m^2"
+                self.result.approximations[-1].detail += (
+                    f"; armature {planned.armature:.3g} {unit} each, adding at most {added:.3g} {coord_unit} to "
+                    f"'{base}'")
 
     def _extra_joints(self, rec: JointRecord, planned: _PlannedAxis) -> list[tuple[str, str, np.ndarray, str]]:
         """The extra joints of coupled joint ``rec``: (name, driving joint, equality
@@ -795,16 +900,17 @@ class MjcfBuilder:
         return out
 
     def _add_extra_joints(self, rec: JointRecord, extra: list[tuple[str, str, np.ndarray, str]],
-                          source: etree._Element) -> None:
+                          source: etree._Element, armature: float | None = None) -> None:
         """Add ``extra`` right after joint ``rec`` on its body, with its type, axis and anchor (so
         that their values add to its value), and their equalities. Each extra joint is 0 at the
-        reference pose and is a real degree of freedom of the body; its armature is set by
-        :meth:`_set_extra_armature` once the skeleton is built."""
+        reference pose and is a real degree of freedom of the body; its armature is ``armature``,
+        or when None set by :meth:`_set_extra_armature` once the skeleton is built."""
         body, jtype, axis, pos = self._joint_frames[rec.name]
         for name, driver, coef, role in extra:
             if name in self._joint_frames or any(r.name == name for r in self.result.joints):
                 raise self.doc.error(source, f"would make a second MuJoCo joint named '{name}'")
-            body.add_joint(name=name, type=jtype, axis=axis, pos=pos, ref=0.0, armature=1.0)  # see _set_extra_armature
+            body.add_joint(name=name, type=jtype, axis=axis, pos=pos, ref=0.0,
+                           armature=1.0 if armature is None else armature)  # None: see _set_extra_armature
             self.exact[("joint", name)] = {"axis": axis, "pos": pos, "ref": 0.0}
             self._joint_frames[name] = (body, jtype, axis, pos)
             self._extras_of.setdefault(rec.name, []).append(name)

@@ -3,7 +3,10 @@
 * A PathPoint is a site on its body.
 * A MovingPathPoint is a site on a small child body that slides along its body's axes; each
   slide follows its coordinate through a joint equality (exact when the location function is
-  linear, else a quartic fit whose worst error the report records).
+  linear, else a quartic fit whose worst error, of the location and of its derivative, the
+  report records). A slide whose quartic leaves a derivative error (a moment-arm error) above
+  :data:`CARRIER_SLOPE_GATE` RMS gets extra slides on its carrier along the same axis (inner and
+  outer joints, as the skeleton's spline couplings: :meth:`TendonBuilder.plan_carriers`).
 * A ConditionalPathPoint becomes a small wrap cylinder, its axis normal to the path's bend
   there, whose surface passes through the point, with a side site outside it (see
   :meth:`TendonBuilder.conditional_geom`). MuJoCo 4.0
@@ -44,7 +47,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .mjcf import Approximation, JointRecord, MjcfBuilder
+from .functions import fit_polynomial, polynomial_slope_errors
+from .mjcf import MAX_BODY_DOFS, Approximation, JointRecord, MjcfBuilder, _CoupledAxis, _linear, _relative
 from .paths import MUSCLE_TYPES, Path, PathPoint, WrapObject
 from .transforms import OSIM_TO_MJ, Transform, matrix_to_quat
 
@@ -57,6 +61,29 @@ from .transforms import OSIM_TO_MJ, Transform, matrix_to_quat
 CARRIER_MASS = 1e-12
 CARRIER_INERTIA = 1e-14
 CARRIER_ARMATURE = 0.1
+#: A carrier slide whose location is a non-linear function of a coordinate follows it by a plain
+#: quartic when that quartic's derivative error (d location / d coordinate: m/rad against an angle,
+#: directly a moment-arm error along the slide) has an RMS over the coordinate's range (what the
+#: issue's RMS over random poses sees) of at most this (m per coordinate unit): 2 mm/rad, the
+#: issue's 95th-percentile moment-arm target, so the quartic alone cannot put a pair beyond it.
+#: Measured (plain quartics): MoBL-ARMS's DELT2 1.13 mm/rad (0.88 mm RMS about shoulder_elv),
+#: BIClong/BICshort 0.57, below it, kept; the knee extensors' patella emulation of the leg and gait
+#: models 2.4-4.1 mm/rad (worst 8-20), above it. Those slides get extra joints instead (main
+#: quartic, inner and outer joints, :func:`o2m.functions.fit_couplings`, derivative-aware), all the
+#: carriers of one coordinate planned together (inner joints shared between carriers), each
+#: carrier within MuJoCo's 6 dofs.
+CARRIER_SLOPE_GATE = 2e-3
+#: Target (m) of a carrier slide with extra joints: its joints are added while an axis misses it
+#: and each brings a gain (:meth:`MjcfBuilder._plan_group`), within the carrier's 6 dofs.
+CARRIER_TARGET = 1e-5
+#: Derivative target (m per coordinate unit) of those fits, or None: minimax on the location only.
+#: None, measured: these splines' curvature jumps at the knee's default angle (knots 0, 1.7e-4 and
+#: 3.5e-4 rad), so a derivative-aware minimax (:func:`o2m.functions.fit_couplings`, slope targets)
+#: spends the fit there and loses elsewhere: with 0.5 mm/rad (the issue's median moment-arm
+#: target) Leg6Dof9Musc's moment-arm RMS p95 is 0.87 mm (0.77 at a 2e-5 m location target),
+#: Gait10dof18musc's 0.53, against 0.50 and 0.51 mm fitted to the location alone, whose
+#: derivative errors are 0.4-0.5 mm/rad RMS (1.8-2.8 mm/rad at worst, next to that knot).
+CARRIER_SLOPE_TARGET: float | None = None
 #: Distance of a side site from a wrap geom's centre, in radii.
 SIDE_SITE_DISTANCE = 2.0
 #: Radius (m) of the wrap sphere that stands for a ConditionalPathPoint: the tendon passes within
@@ -152,6 +179,10 @@ class TendonBuilder:
         self.path_geoms: list[PathGeom] = []
         #: geom name -> (its frame in its OpenSim body, MuJoCo kind, radius)
         self.geom_frames: dict[str, tuple[Transform, str, float]] = {}
+        #: Site names (by id of the PathPoint) and slide names (by (id, axis)) reserved by
+        #: :meth:`plan_carriers` for carriers with extra joints.
+        self._carrier_names: dict[int, str] = {}
+        self._slide_names: dict[tuple[int, int], str] = {}
 
     def _unique(self, name: str) -> str:
         out, k = name, 1
@@ -368,11 +399,65 @@ class TendonBuilder:
         u = cand[best[np.argmax(cand[best] @ -n_body)]]
         return u / np.linalg.norm(u)
 
+    def _site_name(self, path: Path, point: PathPoint) -> str:
+        return point.name if point.name.startswith(path.owner) else f"{path.owner}-{point.name}"
+
+    def _moving_axes(self, point: PathPoint) -> dict[int, tuple[str, object]]:
+        return {i: m for i, m in point.moving.items() if not self._fixed(m[0])}
+
+    def _slide_driver(self, point: PathPoint, i: int, cname: str, fn) -> tuple[object, float]:
+        """The driver of ``point``'s slide along axis ``i`` (its location, a function of the
+        coordinate's base) and the slide's reference value."""
+        ref = float(point.location[i])
+        offset = ref - float(fn(np.array([self.b.ref[cname]]))[0])  # the frame offset of the point
+        return self.b.drivers[cname].then(lambda x, fn=fn, offset=offset: fn(x) + offset), ref
+
+    def plan_carriers(self, paths: list[Path]) -> None:
+        """Choose the carrier slides that get extra joints (:data:`CARRIER_SLOPE_GATE`) and plan
+        them, every coordinate's together (:meth:`MjcfBuilder.plan_extra_couplings`), before any
+        point is added (their site and slide names are reserved here). Each carrier keeps within
+        MuJoCo's 6 dofs. The report's approximation of each slide gives its value and derivative
+        errors (and, with extra joints, the plain quartic's)."""
+        groups: dict[str, list[_CoupledAxis]] = {}
+        room: dict[object, int] = {}
+        for path in paths:
+            for point in path.points:
+                moving = self._moving_axes(point)
+                gated = []
+                for i, (cname, fn) in moving.items():
+                    driver, ref = self._slide_driver(point, i, cname, fn)
+                    base = driver.base
+                    if base not in self.b.coord_joint:
+                        continue  # couple() reports it
+                    lo, hi = self.b._coupling_range(base)
+                    rel = _relative(driver, ref)
+                    if _linear(rel, lo, hi) is not None:
+                        continue
+                    quartic = fit_polynomial(rel, lo, hi, self.b.ref[base], degree=4, exact_at_x0=True)
+                    s_rms = polynomial_slope_errors(rel, quartic.coef, lo, hi, self.b.ref[base])[1]
+                    if s_rms > CARRIER_SLOPE_GATE:
+                        gated.append((i, base, rel))
+                if not gated:
+                    continue
+                site = self._unique(self._site_name(path, point))
+                self._carrier_names[id(point)] = site
+                for i in moving:
+                    self._slide_names[id(point), i] = self._unique(f"{site}_{'xyz'[i]}")
+                room[site] = MAX_BODY_DOFS - len(moving)
+                for i, base, rel in gated:
+                    groups.setdefault(base, []).append(_CoupledAxis(self._slide_names[id(point), i], site, "slide",
+                                                                    base, rel))
+        for group in groups.values():
+            self.b.plan_extra_couplings(group, [a.body for a in group], room,
+                                        targets=[CARRIER_TARGET] * len(group),
+                                        slope_targets=None if CARRIER_SLOPE_TARGET is None
+                                        else [CARRIER_SLOPE_TARGET] * len(group), armature=CARRIER_ARMATURE)
+
     def add_point(self, path: Path, point: PathPoint) -> str:
         """Add the site of ``point`` (a path point, a moving point, or a conditional point kept
         always on the path); returns its name."""
-        name = self._unique(point.name if point.name.startswith(path.owner) else f"{path.owner}-{point.name}")
-        moving = {i: m for i, m in point.moving.items() if not self._fixed(m[0])}
+        name = self._carrier_names.get(id(point)) or self._unique(self._site_name(path, point))
+        moving = self._moving_axes(point)
         loc0 = point.location.copy()  # the location at the reference pose, in the body frame
         pos = self._in_world(point.body, Transform(pos=loc0)).pos
         if not moving:
@@ -390,16 +475,16 @@ class TendonBuilder:
             axis = np.zeros(3)
             axis[i] = 1.0
             axis = self._in_world(point.body, Transform(pos=axis)).pos
-            ref = float(loc0[i])
-            jname = self._unique(f"{name}_{'xyz'[i]}")
+            driver, ref = self._slide_driver(point, i, cname, fn)
+            jname = self._slide_names.get((id(point), i)) or self._unique(f"{name}_{'xyz'[i]}")
             body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=ref,
                            armature=CARRIER_ARMATURE)
             self.b.exact[("joint", jname)] = {"axis": axis, "pos": np.zeros(3), "ref": ref}
+            self.b.register_joint(jname, body, mujoco.mjtJoint.mjJNT_SLIDE, axis, np.zeros(3))
             rec = JointRecord(jname, "slide", path.owner, f"{point.name}/{'xyz'[i]}", None, None, "coordinate")
-            offset = ref - float(fn(np.array([self.b.ref[cname]]))[0])  # the frame offset of the point
-            driver = self.b.drivers[cname].then(lambda x, fn=fn, offset=offset: fn(x) + offset)
-            self.b.couple(rec, driver, ref, point.element)
+            self.b.couple(rec, driver, ref, point.element, high_order=True)
             self.b.result.joints.append(rec)
+            self.b.result.joints.extend(self.b.pop_extra_records(jname))
         body.add_site(name=name, pos=[0, 0, 0], size=[0.002, 0, 0], group=3)
         return name
 
@@ -739,6 +824,7 @@ def add_paths(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, WrapObje
     :class:`TendonBuilder` (its ``path_geoms``, ``exact`` geom values, ``path_forces`` records and
     ``held`` segments). ``path_forces``: see the module notes."""
     tb = TendonBuilder(builder, wraps, path_forces)
+    tb.plan_carriers(paths)
     for path in paths:
         tb.add_path(path)
     return tb
