@@ -392,8 +392,10 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
     if ckpt is not None and ckpt.exists():
         with open(ckpt, "rb") as f:
             state = pickle.load(f)
-        if state["names"] != space.names or state["seed"] != seed:
-            raise ValueError(f"checkpoint {ckpt} belongs to another fit (different parameters or seed); delete it")
+        same_start = "x0" in state and np.array_equal(state["x0"], space.x0)
+        if state["names"] != space.names or state["seed"] != seed or not same_start:
+            raise ValueError(f"checkpoint {ckpt} belongs to another fit (different parameters, start or seed); "
+                             "delete it")
     t_start = time.perf_counter()
     if state is None:
         cost0 = float(objective(space.x0[None])[0])
@@ -402,7 +404,7 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
             opts["popsize"] = popsize
         es = cma.CMAEvolutionStrategy(space.to_unit(space.x0), sigma0, opts)
         val0 = float(validation(space.x0[None])[0]) if validation is not None else float("nan")
-        state = {"names": space.names, "seed": seed, "es": es, "best_x": space.x0.copy(), "best": cost0,
+        state = {"names": space.names, "seed": seed, "x0": space.x0.copy(), "es": es, "best_x": space.x0.copy(), "best": cost0,
                  "cost0": cost0, "history": [], "wall": 0.0, "evals": 1,
                  "val0": val0, "val_best": val0, "val_x": space.x0.copy(), "val_train_cost": cost0}
     if validation is not None and "val_best" not in state:  # a checkpoint written without validation

@@ -82,6 +82,12 @@ def test_fit_recovers_a_known_damping(tmp_path):
     assert len(more.history) == 45 and more.cost <= fit.cost and more.cost0 == fit.cost0
     saved = load_fit(save_fit(tmp_path / "fit.json", more))
     assert np.array_equal(saved.x, more.x) and saved.names == more.names
+    # a checkpoint from a fit that started elsewhere is refused, not silently resumed
+    other, o_init, o_ctrl, o_ref = _setup(0.5, 0.2)
+    o_space = parameter_space(other, ["swing"], [])
+    o_obj = TrajectoryObjective(other, o_space, o_init, o_ctrl, o_ref, ["swing"], penalty=0.0)
+    with pytest.raises(ValueError, match="another fit"):
+        fit_cma(o_obj, seed=0, sigma0=0.2, generations=45, checkpoint=tmp_path / "ckpt.pkl", progress=False)
 
 
 def test_validation_stops_a_fit_that_only_helps_the_training_sets(tmp_path):
