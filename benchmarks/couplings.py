@@ -29,6 +29,7 @@ import numpy as np
 from o2m import mjcf, models, tendons
 from o2m.convert import convert
 from o2m.document import load_document
+from o2m.mujoco_sim import welded_at_default_pose
 from o2m.skeleton import read_skeleton
 
 
@@ -65,18 +66,7 @@ def _step_time(xml: Path, steps: int) -> tuple[float, bool]:
 
 def _hanging(name: str, xml: Path) -> dict[str, tuple[float, float]]:
     """Per coupled axis: (worst |axis value - OpenSim's function|, worst equality violation)."""
-    full = mujoco.MjModel.from_xml_path(str(xml))
-    spec = mujoco.MjSpec.from_file(str(xml))
-    for j in list(spec.body("pelvis").joints):
-        spec.delete(j)
-    for key in list(spec.keys):
-        spec.delete(key)
-    m = spec.compile()
-    d = mujoco.MjData(m)
-    key = full.key("default-pose").qpos
-    for i in range(m.njnt):
-        d.qpos[m.jnt_qposadr[i]] = key[full.jnt_qposadr[full.joint(m.joint(i).name).id]]
-    mujoco.mj_forward(m, d)
+    m, d = welded_at_default_pose(xml, "pelvis")
     fetched = models.fetch_model_with_geometry(name, progress=False)
     axes, _ = mjcf.MjcfBuilder(read_skeleton(load_document(fetched.osim))).coupled_axes()
     names = [m.joint(i).name for i in range(m.njnt)]

@@ -404,7 +404,8 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
             opts["popsize"] = popsize
         es = cma.CMAEvolutionStrategy(space.to_unit(space.x0), sigma0, opts)
         val0 = float(validation(space.x0[None])[0]) if validation is not None else float("nan")
-        state = {"names": space.names, "seed": seed, "x0": space.x0.copy(), "es": es, "best_x": space.x0.copy(), "best": cost0,
+        state = {"names": space.names, "seed": seed, "x0": space.x0.copy(), "es": es,
+                 "best_x": space.x0.copy(), "best": cost0,
                  "cost0": cost0, "history": [], "wall": 0.0, "evals": 1,
                  "val0": val0, "val_best": val0, "val_x": space.x0.copy(), "val_train_cost": cost0}
     if validation is not None and "val_best" not in state:  # a checkpoint written without validation

@@ -94,6 +94,25 @@ def initial_state(model: mujoco.MjModel, coordinates: Mapping[str, float], *,
     return state
 
 
+def welded_at_default_pose(xml: str | os.PathLike[str], body: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """``xml``'s model with ``body``'s own joints removed (welded to its parent, e.g. a pelvis to the
+    world) and its keyframes dropped, with data at the full model's ``default-pose`` keyframe
+    (forward dynamics computed), for tests and benchmarks that hang a model under gravity."""
+    full = mujoco.MjModel.from_xml_path(str(xml))
+    spec = mujoco.MjSpec.from_file(str(xml))
+    for joint in list(spec.body(body).joints):
+        spec.delete(joint)
+    for key in list(spec.keys):
+        spec.delete(key)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    key = full.key("default-pose").qpos
+    for i in range(model.njnt):
+        data.qpos[model.jnt_qposadr[i]] = key[full.jnt_qposadr[full.joint(model.joint(i).name).id]]
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
 def _has_joint(model: mujoco.MjModel, name: str) -> bool:
     try:
         joint_qpos_address(model, name)

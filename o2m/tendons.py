@@ -195,6 +195,18 @@ class TendonBuilder:
         """Frame ``x`` of ``body`` as MuJoCo places it in the body (ground: mapped to Z-up)."""
         return Transform(OSIM_TO_MJ) @ x if body == "ground" else x
 
+    def _carrier(self, parent: str, name: str, pos: np.ndarray):
+        """A massless child body of ``parent`` at ``pos`` (MuJoCo frame of the parent), named
+        ``name`` (made unique), to carry a moving point or a conditional point's side site."""
+        body = self.b.bodies[parent].add_body(name=self._unique(name), pos=pos)
+        self.b.exact[("body", body.name)] = {"pos": pos, "quat": np.array([1.0, 0, 0, 0])}
+        body.explicitinertial = True
+        body.mass = CARRIER_MASS
+        body.fullinertia = [CARRIER_INERTIA, CARRIER_INERTIA, CARRIER_INERTIA, 0, 0, 0]
+        self.b.exact[("inertial", body.name)] = {"pos": np.zeros(3), "mass": CARRIER_MASS,
+                                                 "fullinertia": np.array(body.fullinertia)}
+        return body
+
     # -- points --------------------------------------------------------------------------
     def location_at(self, point: PathPoint, values: dict[str, float]) -> np.ndarray:
         """Location (3,) of ``point`` in its body frame when the coordinates have ``values``."""
@@ -340,13 +352,7 @@ class TendonBuilder:
 
         ref = float(slide(self.b.ref[cname]))
         pos = self._in_world(point.body, Transform(pos=centre + ref * u)).pos  # the side site at slide(q) along u
-        body = self.b.bodies[point.body].add_body(name=self._unique(f"{gname}_carrier"), pos=pos)
-        self.b.exact[("body", body.name)] = {"pos": pos, "quat": np.array([1.0, 0, 0, 0])}
-        body.explicitinertial = True
-        body.mass = CARRIER_MASS
-        body.fullinertia = [CARRIER_INERTIA, CARRIER_INERTIA, CARRIER_INERTIA, 0, 0, 0]
-        self.b.exact[("inertial", body.name)] = {"pos": np.zeros(3), "mass": CARRIER_MASS,
-                                                 "fullinertia": np.array(body.fullinertia)}
+        body = self._carrier(point.body, f"{gname}_carrier", pos)
         axis = self._in_world(point.body, Transform(pos=u)).pos if point.body == "ground" else u
         jname = self._unique(f"{gname}_switch")
         body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=ref, armature=CARRIER_ARMATURE)
@@ -464,13 +470,7 @@ class TendonBuilder:
             self.b.bodies[point.body].add_site(name=name, pos=pos, size=[0.002, 0, 0], group=3)
             self.b.exact[("site", name)] = {"pos": pos}
             return name
-        body = self.b.bodies[point.body].add_body(name=self._unique(f"{name}_carrier"), pos=pos)
-        self.b.exact[("body", body.name)] = {"pos": pos, "quat": np.array([1.0, 0, 0, 0])}
-        body.explicitinertial = True
-        body.mass = CARRIER_MASS
-        body.fullinertia = [CARRIER_INERTIA, CARRIER_INERTIA, CARRIER_INERTIA, 0, 0, 0]
-        self.b.exact[("inertial", body.name)] = {"pos": np.zeros(3), "mass": CARRIER_MASS,
-                                                 "fullinertia": np.array(body.fullinertia)}
+        body = self._carrier(point.body, f"{name}_carrier", pos)
         for i, (cname, fn) in moving.items():
             axis = np.zeros(3)
             axis[i] = 1.0

@@ -24,6 +24,7 @@ from o2m import models
 from o2m.convert import convert
 from o2m.document import load_document
 from o2m.mjcf import MjcfBuilder
+from o2m.mujoco_sim import welded_at_default_pose
 from o2m.skeleton import read_skeleton
 from o2m.validate import compare_kinematics
 
@@ -166,16 +167,7 @@ def test_coupled_axes_follow_opensim_hanging_under_gravity(converted):
     full = mujoco.MjModel.from_xml_path(str(conv.xml))
     if not _extra_joints(full):
         pytest.skip("no extra coupling joints")
-    spec = mujoco.MjSpec.from_file(str(conv.xml))
-    for j in list(spec.body("pelvis").joints):
-        spec.delete(j)
-    for key in list(spec.keys):
-        spec.delete(key)
-    m = spec.compile()
-    d = mujoco.MjData(m)
-    key = full.key("default-pose").qpos
-    for i in range(m.njnt):
-        d.qpos[m.jnt_qposadr[i]] = key[full.jnt_qposadr[full.joint(m.joint(i).name).id]]
+    m, d = welded_at_default_pose(conv.xml, "pelvis")
     builder = MjcfBuilder(read_skeleton(load_document(osim)))
     builder.build()
     extra = _extra_joints(m)
