@@ -31,7 +31,12 @@ NAMES = ["tug_of_war", "arm26", "leg6dof9musc", "gait10dof18musc", "gait2354", "
 
 #: Measured gaps (quick mode, seed 0, 200 poses): model -> {"len": {muscle: % achieved}, MA fields}.
 #: TRIlong (Arm26): two wrap objects (TRIlonghh, TRIlongglen) act on one path segment and MuJoCo
-#: wraps one geom per segment (2.70 % quick, 2.00 % with the full-size fit). Moment-arm p95 of
+#: wraps one geom per segment, so the ellipsoid TRIlonghh is left out and the fit bends the small
+#: cylinder TRIlongglen to stand in (2.70 % quick, 2.00 % with the full-size fit). Keeping the
+#: ellipsoid instead would not help: alone (OpenSim without TRIlongglen against its MuJoCo twin,
+#: unfitted) it is 12.5 % off, as its MuJoCo cylinder wraps where OpenSim's quadrant-limited
+#: ellipsoid lets the path pass through (9.4 % mean on those poses) and differs in shape where
+#: both wrap; TRIlongglen alone is 0.6 % off. Moment-arm p95 of
 #: Arm26 (2.64 mm): its BIClong/TRIlong wraps. MoBL-ARMS against computeMomentArm (p95 3.90, max
 #: 14.6 mm): PECM1-3 and LAT1-3 keep their same-body MovingPathPoint segments (path_forces "auto":
 #: holding them would change their length by 7.6-16.8 %), so they follow OpenSim's -dL/dq, which is
