@@ -14,6 +14,10 @@ OpenSim initial state and an excitation set carry over by name:
   per trajectory, e.g. CMA-ES candidates) and returns :class:`Trajectories` on the sample grid,
   the initial state included; :func:`step_loop` does the same with a plain ``mj_step`` loop (the
   reference the batched path is tested against).
+* :func:`force_driven` turns the muscles into force motors and :func:`controls_from_forces` lays
+  tendon forces (e.g. OpenSim's recorded ones) out as their controls: the model then moves under
+  exactly those forces, which separates what the skeleton, paths and passive forces leave from
+  what the muscle model adds (``benchmarks/force_sensitivity.py``).
 """
 
 from __future__ import annotations
@@ -111,6 +115,48 @@ def welded_at_default_pose(xml: str | os.PathLike[str], body: str) -> tuple[mujo
         data.qpos[model.jnt_qposadr[i]] = key[full.jnt_qposadr[full.joint(model.joint(i).name).id]]
     mujoco.mj_forward(model, data)
     return model, data
+
+
+def force_driven(model: str | os.PathLike[str] | mujoco.MjSpec, muscles: Sequence[str]) -> mujoco.MjModel:
+    """The model (an MJCF path or an MjSpec, left unchanged) with its ``muscles`` as plain force
+    motors on their tendons: no activation state, no force-length-velocity curves, no passive
+    force, no control or force limits; the control is the actuator force (N, negative when
+    pulling, as MuJoCo's muscle forces are). Tendon springs and damping, joint damping and
+    everything else stay. :func:`controls_from_forces` builds the controls."""
+    spec = model.copy() if isinstance(model, mujoco.MjSpec) else mujoco.MjSpec.from_file(str(model))
+    for name in muscles:
+        act = spec.actuator(name)
+        if act is None:
+            raise KeyError(f"no actuator named {name!r}")
+        act.dyntype = mujoco.mjtDyn.mjDYN_NONE
+        act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        act.biastype = mujoco.mjtBias.mjBIAS_NONE
+        act.gainprm[:] = 0.0
+        act.gainprm[0] = 1.0
+        act.biasprm[:] = 0.0
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        act.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    return spec.compile()
+
+
+def controls_from_forces(model: mujoco.MjModel, muscles: Sequence[str], forces: np.ndarray, *,
+                         hold: bool = False) -> np.ndarray:
+    """Controls for a :func:`force_driven` model from pulling forces sampled every step.
+
+    Args:
+        forces: shape (..., T, len(muscles)), N, positive when pulling (OpenSim's tendon force).
+        hold: step ``k`` gets ``forces[k]`` (the force MuJoCo applied during that step, for
+            replaying MuJoCo's own ``actuator_force``) instead of the mean ``(f_k + f_{k+1}) / 2``
+            of a force that changes linearly between samples.
+    Returns:
+        controls, shape (..., T - 1, nu), the other actuators at zero.
+    """
+    forces = np.asarray(forces, float)
+    ids = muscle_actuator_ids(model, muscles)
+    step = forces[..., :-1, :] if hold else 0.5 * (forces[..., :-1, :] + forces[..., 1:, :])
+    ctrl = np.zeros(forces.shape[:-2] + (forces.shape[-2] - 1, model.nu))
+    ctrl[..., ids] = -step
+    return ctrl
 
 
 def _has_joint(model: mujoco.MjModel, name: str) -> bool:

@@ -13,6 +13,8 @@ from o2m.activations import generate_activations
 from o2m.convert import convert
 from o2m.mujoco_sim import (
     controls_from_excitations,
+    controls_from_forces,
+    force_driven,
     initial_state,
     muscle_activations,
     rollout,
@@ -22,6 +24,27 @@ from o2m.mujoco_sim import (
 from o2m.opensim_sim import OpenSimRun, run_isolated, run_many, simulate
 
 from .conftest import require_mirror
+
+LIFTER = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="link" pos="0 0 1">
+      <joint name="swing" type="hinge" axis="0 1 0" damping="0.05"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1"/>
+      <site name="tip" pos="0.5 0 0"/>
+    </body>
+    <site name="anchor" pos="0.3 0 1.4"/>
+  </worldbody>
+  <tendon>
+    <spatial name="lifter" stiffness="20" springlength="0 0.6"><site site="anchor"/><site site="tip"/></spatial>
+  </tendon>
+  <actuator>
+    <muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/>
+    <motor name="push" joint="swing" gear="1"/>
+  </actuator>
+</mujoco>
+"""
 
 ARM26_MUSCLES = ["TRIlong", "TRIlat", "TRImed", "BIClong", "BICshort", "BRA"]
 
@@ -148,3 +171,38 @@ def test_run_many_keeps_going_past_a_failure_on_a_dask_cluster(arm26):
     with cf.ThreadPoolExecutor(2) as pool:
         again = run_many(osim, t, sets[[0, 2]], ARM26_MUSCLES, executor=pool, progress=False)
     assert np.array_equal(again[0].coordinates, runs[0].coordinates)
+
+
+def test_a_force_driven_model_replays_the_muscle_forces_exactly():
+    """Fed the forces its muscle applied, the force-driven twin moves as the muscle model did
+    (tendon spring, joint damping and the other actuator kept); a 1 % stronger force does not."""
+    spec = mujoco.MjSpec.from_string(LIFTER)
+    model = spec.compile()
+    driven = force_driven(spec, ["lifter"])
+    assert driven.na == 0 and model.na == 1 and driven.actuator_ctrllimited[0] == 0
+    data = mujoco.MjData(model)
+    data.qpos[0] = 0.3
+    steps = 300
+    ctrl = np.zeros((steps, 2))
+    ctrl[:, 0] = 0.5 + 0.5 * np.sin(np.linspace(0, 6, steps))
+    ctrl[:, 1] = 0.2
+    q, pull = [data.qpos[0]], []
+    for k in range(steps):
+        data.ctrl[:] = ctrl[k]
+        mujoco.mj_step(model, data)
+        pull.append(-data.actuator_force[0])
+        q.append(data.qpos[0])
+    assert max(pull) > 1.0
+    forces = np.array(pull + pull[-1:])[:, None]  # (T, 1), sample k = the force during step k
+    controls = controls_from_forces(driven, ["lifter"], forces, hold=True)
+    controls[:, 1] = ctrl[:, 1]
+    init = initial_state(driven, {"swing": 0.3})
+    replay = rollout(driven, init, controls, joint_names=["swing"]).coordinates[0, :, 0]
+    assert np.max(np.abs(replay - np.array(q))) < 1e-9
+    stronger = controls.copy()
+    stronger[:, 0] *= 1.01
+    moved = rollout(driven, init, stronger, joint_names=["swing"]).coordinates[0, :, 0]
+    assert np.max(np.abs(moved - np.array(q))) > 1e-4
+    # the mean of neighbouring samples, for forces that change linearly between them
+    ramp = controls_from_forces(driven, ["lifter"], np.array([[0.0], [2.0], [4.0]]))
+    assert np.allclose(ramp[:, 0], [-1.0, -3.0]) and np.allclose(ramp[:, 1], 0.0)
