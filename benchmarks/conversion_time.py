@@ -16,6 +16,7 @@ import multiprocessing
 import statistics
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from o2m import models
@@ -37,9 +38,10 @@ def main() -> None:
         fetched = models.fetch_model_with_geometry(name, progress=False)
         times = []
         for _ in range(a.repeat):
-            with tempfile.TemporaryDirectory() as tmp, multiprocessing.get_context("spawn").Pool(1) as pool:
-                times.append(pool.apply(_timed_conversion, (str(fetched.osim), str(fetched.geometry_dir),
-                                                            str(Path(tmp) / name))))
+            with (tempfile.TemporaryDirectory() as tmp,
+                  ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool):
+                times.append(pool.submit(_timed_conversion, str(fetched.osim), str(fetched.geometry_dir),
+                                         str(Path(tmp) / name)).result())
         print(f"{name:18s} {statistics.median(times):9.3f} {min(times):8.3f} {len(times):5d}")
 
 
