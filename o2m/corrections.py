@@ -14,6 +14,8 @@ every muscle (a 50-dimensional block for MoBL-ARMS) CMA-ES searches while the ot
 fixed, each candidate simulated only from the start of the block's support to ``lookahead``
 knots past its end, from the state the current corrections reach there. Each block is accepted
 only if it lowers the trajectory's whole cost, so the result is never worse than no correction.
+``sweeps`` passes repeat this over all blocks: a later pass refits each block after the blocks
+after it have moved (on MoBL-ARMS, 3 passes cut the remaining error by a third against 1).
 
 The search can start from :func:`force_matching_start` (o2m's addition to the paper): the
 correction that, along OpenSim's own trajectory, would make every MuJoCo muscle pull with

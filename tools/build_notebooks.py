@@ -379,7 +379,8 @@ Even a fitted model drifts from OpenSim. The paper asks how small a change of th
 makes MuJoCo follow OpenSim: per muscle, a correction shaped as a cubic spline with knots every
 0.1 s (10 Hz) is added to the reference excitation (and clipped to [0, 1]). The corrections
 minimise the joint error plus an L2 penalty on their size. `o2m.corrections` optimises the
-spline coefficients block by block in time with CMA-ES and keeps a block only if it lowers the
+spline coefficients block by block in time with CMA-ES, in several passes over the blocks (each
+pass revisits a block after the later ones have moved), and keeps a block only if it lowers the
 whole trajectory's cost. It starts from the better of no correction and the correction that,
 along OpenSim's own trajectory, would make every MuJoCo muscle pull with the tendon force OpenSim
 recorded (o2m's addition: the dataset keeps those forces).
@@ -390,8 +391,10 @@ import numpy as np
 from o2m.corrections import PENALTY, fit_corrections
 from o2m.fitting import load_fit
 from o2m.force_fit import ForceFit
+from o2m import paper
 from o2m.paper import correction_start, fitted_model, load_experiment
 
+budget = paper.QUICK if QUICK else paper.FULL  # the main command's budgets
 exp = load_experiment(DATA, OUT / "paper")
 results = DATA / "results"
 if (results / "parameters.json").exists() and (results / "muscle_forces.json").exists():
@@ -401,7 +404,8 @@ else:  # no stored fit (a fresh dataset): correct the converted model
 i = exp.dataset.test[0]
 start = correction_start(exp, model, i)  # the correction that would match OpenSim's recorded muscle forces
 res = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i], exp.dofs,
-                      generations=2 if QUICK else 6, seed=0, start=start)
+                      generations=budget.correction_generations, sweeps=budget.correction_sweeps, seed=0,
+                      start=start)
 print(f"penalty weight {PENALTY}; cost {res.cost0:.4f} -> {res.cost:.4f}; {res.evaluations} simulated windows")
 print("mean absolute joint error (rad):", dict(zip(exp.dofs, res.joint_mae0.round(3))), "->",
       dict(zip(exp.dofs, res.joint_mae.round(3))))
