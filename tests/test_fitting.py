@@ -136,6 +136,10 @@ def test_corrections_reduce_the_error_of_a_weaker_model():
     assert res.cost < 0.3 * res.cost0
     assert res.joint_mae[0] < res.joint_mae0[0]
     assert np.all(res.excitations >= 0) and np.all(res.excitations <= 1)
+    # a second pass over the blocks starts where the first ended and keeps only improvements
+    two = fit_corrections(weak, init, exc, ["lifter"], ref, ["swing"], generations=8, seed=0, penalty=1e-3,
+                          sweeps=2)
+    assert two.cost <= res.cost and two.evaluations > res.evaluations
 
 
 def test_a_tendon_with_a_spring_gets_a_spring_scale():
