@@ -34,11 +34,9 @@ is better on held-out states (:attr:`MuscleForceFit.kept`).
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import copy
 import json
 import math
-import multiprocessing
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -49,6 +47,7 @@ import numpy as np
 
 from o2m.mujoco_sim import STATE_SPEC, initial_state
 from o2m.muscles import _mj_fl, _mj_fv
+from o2m.parallel import map_with_progress
 from o2m.validate import joint_equality_plan
 
 __all__ = ["ForceFit", "MuscleForceFit", "ForceSamples", "TINY", "fit_forces", "pulling_force", "sample_states",
@@ -389,8 +388,6 @@ def fit_forces(model: mujoco.MjModel, train: ForceSamples, *, held_out: ForceSam
     least-squares evaluations per muscle. The fits run in
     ``processes`` worker processes (default: all cores); the result does not depend on it.
     """
-    from tqdm.auto import tqdm
-
     if held_out is None:
         traj = np.unique(train.trajectory)
         held_rows = np.isin(train.trajectory, traj[4::5])
@@ -406,20 +403,8 @@ def fit_forces(model: mujoco.MjModel, train: ForceSamples, *, held_out: ForceSam
                            (train.length[:, j], train.velocity[:, j], train.activation[:, j], train.force[:, j]),
                            (held_out.length[:, j], held_out.velocity[:, j], held_out.activation[:, j],
                             held_out.force[:, j]), st, static_weight, max_nfev))
-    processes = max(1, processes or os.cpu_count() or 1)
-    bar = tqdm(total=len(tasks), desc="muscle forces", unit="muscle", disable=not progress)
-    fits: dict[str, MuscleForceFit] = {}
-    if processes == 1:
-        for t in tasks:
-            fits[t.name] = _fit_one(t)
-            bar.update()
-    else:
-        ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-        with cf.ProcessPoolExecutor(max_workers=processes, mp_context=ctx) as pool:
-            for f in pool.map(_fit_one, tasks):
-                fits[f.name] = f
-                bar.update()
-    bar.close()
+    fits = {f.name: f for f in map_with_progress(_fit_one, tasks, workers=processes, desc="muscle forces",
+                                                 unit="muscle", progress=progress)}
     return ForceFit({t.name: fits[t.name] for t in tasks},
                     {"static_weight": static_weight, "max_nfev": max_nfev, "train_samples": len(train.length),
                      "held_out_samples": len(held_out.length)})

@@ -43,7 +43,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import functools
 import math
-import multiprocessing
 import os
 import tempfile
 from copy import deepcopy
@@ -55,6 +54,7 @@ from lxml import etree
 
 from .document import load_document
 from .errors import ModelFileError
+from .parallel import worker_context
 from .skeleton import Skipped
 
 __all__ = [
@@ -902,10 +902,7 @@ def fit_muscles(osim_path: str | os.PathLike, *, n_poses: int = 300, seed: int =
         if pool is None:
             import scipy.optimize  # noqa: F401  (imported once here, inherited by forked workers)
 
-            # fork (Linux) starts workers at once and needs no __main__ guard in the caller's script
-            methods = multiprocessing.get_all_start_methods()
-            ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
-            pool = cf.ProcessPoolExecutor(max_workers=processes, mp_context=ctx)
+            pool = cf.ProcessPoolExecutor(max_workers=processes, mp_context=worker_context())
         return pool
 
     try:

@@ -37,7 +37,6 @@ import os
 import tempfile
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -45,6 +44,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
+from .parallel import map_with_progress
 from .transforms import OSIM_TO_MJ
 
 #: Poses to fit on and to check on, and the CMA-ES evaluation budget per tendon (full, quick).
@@ -430,7 +430,6 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     same-body segments are held, and how. Returns one :class:`PathFit` per tendon, in
     ``path_geoms`` order.
     """
-    from tqdm.auto import tqdm
 
     sizes = QUICK if (quick_mode() if quick is None else quick) else FULL
     n_fit = int(n_poses or sizes["poses"])
@@ -463,28 +462,9 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         tasks.append(_Task(tendon, reduced_xml(xml, tendon), [g.geom for g in geoms], [g.sidesite for g in geoms],
                            [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
                            min(n_fit, len(tg["qpos"]) - 1), tg["coordinates"], seed * 1000 + k, budget, contacts))
-    workers = max(1, min(workers or os.cpu_count() or 1, len(tasks)))
-    bar = tqdm(total=len(tasks), disable=not progress, desc="wrap fit")
-    results: dict[str, PathFit] = {}
-    if workers == 1:
-        for task in tasks:
-            results[task.tendon] = _fit_one(task)
-            bar.update()
-    else:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=_context()) as pool:
-            for task, res in zip(tasks, pool.map(_fit_one, tasks), strict=True):
-                results[task.tendon] = res
-                bar.update()
-    bar.close()
+    fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
+    results = {task.tendon: res for task, res in zip(tasks, fitted, strict=True)}
     return [results[t] for t in by_tendon if t in results]
-
-
-def _context() -> Any:
-    """fork where there is one (the workers use only MuJoCo, NumPy and cma; no ``__main__``
-    guard needed in the caller's script), else spawn, as :mod:`o2m.muscles` does."""
-    import multiprocessing
-
-    return multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
 
 
 def apply_fits(spec: mujoco.MjSpec, fits: Sequence[PathFit], site_exact: dict, geom_exact: dict) -> None:
