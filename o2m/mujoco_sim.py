@@ -151,12 +151,7 @@ def controls_from_forces(model: mujoco.MjModel, muscles: Sequence[str], forces: 
     Returns:
         controls, shape (..., T - 1, nu), the other actuators at zero.
     """
-    forces = np.asarray(forces, float)
-    ids = muscle_actuator_ids(model, muscles)
-    step = forces[..., :-1, :] if hold else 0.5 * (forces[..., :-1, :] + forces[..., 1:, :])
-    ctrl = np.zeros(forces.shape[:-2] + (forces.shape[-2] - 1, model.nu))
-    ctrl[..., ids] = -step
-    return ctrl
+    return _step_controls(model, muscles, -np.asarray(forces, float), hold=hold)
 
 
 def _has_joint(model: mujoco.MjModel, name: str) -> bool:
@@ -181,10 +176,15 @@ def controls_from_excitations(model: mujoco.MjModel, muscles: Sequence[str], exc
         controls, shape (..., T - 1, nu): step ``k`` gets ``(u_k + u_{k+1}) / 2`` (the mean of
         OpenSim's piecewise-linear excitation over the step); actuators not listed get 0.
     """
-    exc = np.asarray(excitations, float)
+    return _step_controls(model, muscles, np.asarray(excitations, float), hold=False)
+
+
+def _step_controls(model: mujoco.MjModel, muscles: Sequence[str], samples: np.ndarray, *, hold: bool) -> np.ndarray:
+    """Per-muscle samples (..., T, M) laid out as controls (..., T - 1, nu), the other actuators
+    at 0: step ``k`` gets sample ``k`` with ``hold``, else the mean of samples ``k`` and ``k + 1``."""
     ids = muscle_actuator_ids(model, muscles)
-    ctrl = np.zeros((*exc.shape[:-2], exc.shape[-2] - 1, model.nu))
-    ctrl[..., ids] = 0.5 * (exc[..., :-1, :] + exc[..., 1:, :])
+    ctrl = np.zeros((*samples.shape[:-2], samples.shape[-2] - 1, model.nu))
+    ctrl[..., ids] = samples[..., :-1, :] if hold else 0.5 * (samples[..., :-1, :] + samples[..., 1:, :])
     return ctrl
 
 
