@@ -22,6 +22,7 @@ from lxml import etree
 from . import forces
 from .document import load_document
 from .errors import O2MError
+from .lengthvia import add_length_vias
 from .mjcf import Approximation, JointRecord, MjcfBuilder, add_geometry
 from .paths import MUSCLE_TYPES, read_paths, read_wrap_objects
 from .skeleton import SkeletonReader, Skipped, read_skeleton
@@ -58,6 +59,8 @@ class ConversionReport:
     #: computeMomentArm and against OpenSim's -dL/dq.
     moment_arm_plots: str = ""
     moment_arm_worst: list[dict] = field(default_factory=list)
+    #: One :class:`o2m.lengthvia.LengthVia` (as a dict) per segment given a designed length.
+    length_vias: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -137,7 +140,7 @@ class Conversion:
 def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | Path] | None = None,
             name: str | None = None, fit_mechanics: bool = True, fit_wraps: bool = True,
             workers: int | None = None, path_forces: str = "auto", quick: bool | None = None,
-            moment_arm_plots: bool = True) -> Conversion:
+            moment_arm_plots: bool = True, length_vias: bool = True) -> Conversion:
     """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
 
     ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
@@ -152,7 +155,9 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     whether the tendon is OpenSim's length or OpenSim's force transmission (see
     :mod:`o2m.tendons`); the report records each choice. ``moment_arm_plots`` writes
     ``<stem>.moment_arms.pdf`` (:func:`o2m.validate_muscles.plot_moment_arm_sweeps`; 21 values a
-    sweep in quick mode, else 41) and lists each path's worst pair in the report. Raises an
+    sweep in quick mode, else 41) and lists each path's worst pair in the report.
+    ``length_vias`` replaces the wraps that share one path segment, where one coordinate moves
+    it, by a moving via point of designed length (:mod:`o2m.lengthvia`). Raises an
     :class:`~o2m.errors.O2MError`
     subclass for bad input; nothing is written then.
     """
@@ -166,7 +171,9 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
     result = builder.build()
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
-    tendons = add_paths(builder, paths, read_wrap_objects(reader), path_forces=path_forces)
+    wraps = read_wrap_objects(reader)
+    vias = add_length_vias(builder, paths, wraps, str(osim)) if length_vias else []
+    tendons = add_paths(builder, paths, wraps, path_forces=path_forces)
     force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
     muscle_skipped = _fit_mechanics(result, osim) if fit_mechanics and any(
         p.owner_type in MUSCLE_TYPES for p in paths) else []
@@ -180,6 +187,8 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
         spec.compiler.LRopt.mode = mujoco.mjtLRMode.mjLRMODE_NONE  # o2m sets the length ranges itself
         try:
             model = spec.compile()
+            if tendons.weigh_static_carriers(model):
+                model = spec.compile()
         except Exception as exc:
             raise O2MError(f"{osim}: MuJoCo could not compile the converted model: {exc}") from exc
         fits, fit_seconds = [], 0.0
@@ -188,7 +197,11 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
 
             t_fit = time.perf_counter()
             xml0 = restore_geom_precision(builder.restore_precision(spec.to_xml()), tendons.exact)
-            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=workers, held=tendons.held, quick=quick)
+            designed: dict[str, list] = {}
+            for v in vias:
+                designed.setdefault(v.path, []).append(v)
+            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=workers, held=tendons.held, quick=quick,
+                             designed=designed)
             apply_fits(spec, fits, builder.exact, tendons.exact)
             model = spec.compile()
             fit_seconds = time.perf_counter() - t_fit
@@ -230,7 +243,8 @@ def convert(osim: str | Path, out_dir: str | Path, *, geometry_dirs: list[str | 
             skipped=[s for s in skel.skipped if (s.element, s.name) not in force_conv.handled]
             + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings,
             path_fits=[f.to_dict() for f in fits], path_fit_seconds=fit_seconds, path_forces_mode=path_forces,
-            path_forces=[asdict(r) for r in tendons.path_forces], moment_arm_plots=plots, moment_arm_worst=worst)
+            path_forces=[asdict(r) for r in tendons.path_forces], moment_arm_plots=plots, moment_arm_worst=worst,
+            length_vias=[asdict(v) for v in vias])
         report.write(stage, stem)
         _publish(stage, out_dir, stem)
     return Conversion(out_dir / f"{stem}.xml", report)

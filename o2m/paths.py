@@ -26,7 +26,8 @@ WRAP_TYPES = frozenset({"WrapSphere", "WrapCylinder", "WrapEllipsoid", "WrapToru
 class PathPoint:
     """A point of a path. ``location`` (3,) is in ``body``'s frame (for a moving point, at the
     coordinates' default values). ``moving`` maps axis 0/1/2 to (coordinate, function of it);
-    ``condition`` is (coordinate, lo, hi) for a ConditionalPathPoint."""
+    ``condition`` is (coordinate, lo, hi) for a ConditionalPathPoint. ``designed`` marks a point
+    o2m adds (:mod:`o2m.lengthvia`), which OpenSim's path does not have."""
 
     name: str
     body: str
@@ -34,6 +35,7 @@ class PathPoint:
     element: etree._Element
     moving: dict[int, tuple[str, Function]] = field(default_factory=dict)
     condition: tuple[str, float, float] | None = None
+    designed: bool = False
 
 
 @dataclass

@@ -61,6 +61,11 @@ from .transforms import OSIM_TO_MJ, Transform, matrix_to_quat
 CARRIER_MASS = 1e-12
 CARRIER_INERTIA = 1e-14
 CARRIER_ARMATURE = 0.1
+#: Mass (kg) and inertia (kg m²) of a carrier on a body welded to the world (see
+#: :meth:`TendonBuilder.weigh_static_carriers`): the armature's worth, so that MuJoCo's constraint
+#: softness sees the inertia its slides have.
+STATIC_CARRIER_MASS = CARRIER_ARMATURE
+STATIC_CARRIER_INERTIA = 1e-6
 #: A carrier slide whose location is a non-linear function of a coordinate follows it by a plain
 #: quartic when that quartic's derivative error (d location / d coordinate: m/rad against an angle,
 #: directly a moment-arm error along the slide) has an RMS over the coordinate's range (what the
@@ -183,6 +188,8 @@ class TendonBuilder:
         #: :meth:`plan_carriers` for carriers with extra joints.
         self._carrier_names: dict[int, str] = {}
         self._slide_names: dict[tuple[int, int], str] = {}
+        #: Every carrier body added (see :meth:`weigh_static_carriers`).
+        self.carriers: list = []
 
     def _unique(self, name: str) -> str:
         out, k = name, 1
@@ -205,7 +212,33 @@ class TendonBuilder:
         body.fullinertia = [CARRIER_INERTIA, CARRIER_INERTIA, CARRIER_INERTIA, 0, 0, 0]
         self.b.exact[("inertial", body.name)] = {"pos": np.zeros(3), "mass": CARRIER_MASS,
                                                  "fullinertia": np.array(body.fullinertia)}
+        self.carriers.append(body)
         return body
+
+    def weigh_static_carriers(self, model: mujoco.MjModel) -> list[str]:
+        """Give every carrier on a body welded to the world (``model``: the compiled spec) the
+        mass :data:`STATIC_CARRIER_MASS`, its weight cancelled (``gravcomp`` 1); returns their names.
+
+        Why: MuJoCo scales a constraint's softness by the inverse inertia of its degrees of
+        freedom at ``qpos0`` (``dof_invweight0``), and for slides on a body welded to the world
+        it takes that from the body's mass alone, not its armature (measured, MuJoCo 4.0: a 1e-12
+        kg carrier there gets 1e12, one on a moving body 1/armature = 10). Its joint equalities
+        then apply no force: MoBL-ARMS's PECM and LAT carriers, on the thorax, were left behind by
+        their coordinates by up to 51 mm in 1 s of random excitation. With the mass they follow;
+        their parent does not move, so the mass changes nothing else, and gravcomp keeps its
+        weight off the coordinates."""
+        out = []
+        for body in self.carriers:
+            bid = model.body(body.name).id
+            if model.body_weldid[model.body_parentid[bid]] != 0:
+                continue
+            body.mass = STATIC_CARRIER_MASS
+            body.fullinertia = [STATIC_CARRIER_INERTIA] * 3 + [0, 0, 0]
+            body.gravcomp = 1.0
+            self.b.exact[("inertial", body.name)] = {"pos": np.zeros(3), "mass": STATIC_CARRIER_MASS,
+                                                     "fullinertia": np.array(body.fullinertia)}
+            out.append(body.name)
+        return out
 
     # -- points --------------------------------------------------------------------------
     def location_at(self, point: PathPoint, values: dict[str, float]) -> np.ndarray:
@@ -651,8 +684,8 @@ class TendonBuilder:
         blocked: list[tuple[str, str]] = []
         for i in range(len(site_point) - 1):
             a, b = pts[site_point[i]], pts[site_point[i + 1]]
-            if a.body != b.body or not (self._moves(a) or self._moves(b)):
-                continue
+            if a.body != b.body or not (self._moves(a) or self._moves(b)) or a.designed or b.designed:
+                continue  # (a designed point stands for OpenSim's wraps there, whose forces act)
             others = [pts[k].name for k in range(site_point[i] + 1, site_point[i + 1])
                       if roles[k] == "conditional" and pts[k].body != a.body]
             item = planned.get(i)

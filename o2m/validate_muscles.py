@@ -57,6 +57,8 @@ __all__ = [
     "moment_arm_sweeps",
     "mujoco_tendon_lengths",
     "opensim_spikes",
+    "opensim_length_steps",
+    "continuous_tendon_front",
     "plot_moment_arm_sweeps",
     "plot_moment_arms",
     "sweep_jumps",
@@ -932,6 +934,145 @@ def sweep_jumps(
                                      "tendons": tend}
     out["jumps"].sort(key=lambda j: -j["mujoco"])
     return _clean(out)
+
+
+def opensim_length_steps(
+    osim_path: str | os.PathLike,
+    mjcf_path: str | os.PathLike,
+    *,
+    step: float = float(np.deg2rad(0.5)),
+    linear_step: float = 5e-4,
+    min_step: float = 5e-4,
+    bisections: int = 40,
+    assembly_accuracy: float | None = 1e-12,
+) -> list[dict[str, Any]]:
+    """Discontinuities of OpenSim's own path lengths, and what they cost any continuous tendon.
+
+    Each independent coordinate is swept over its range (the others at their defaults) in steps
+    of ``step`` radians (``linear_step`` m); a neighbour interval whose length change stands out
+    from its neighbours' by more than ``min_step`` / 2 is bisected ``bisections`` times towards
+    the larger change. What is left (an interval of width ``range / 2**bisections``) changing by
+    more than ``min_step`` metres is a step of OpenSim's length (a wrap switching on or off, a
+    conditional point): a continuous function (a MuJoCo tendon without a matching flip) is at
+    least half of it away from OpenSim on one side of it.
+
+    Returns, largest ``floor_pct`` first, one dict per step::
+
+        {"path", "coordinate", "at": q (rad or m), "height": L(after) - L(before) (m),
+         "length": [L before, L after] (m),
+         "floor_pct": 100 * |height| / 2 / max(length)}  # a lower bound on any continuous
+                                                          # tendon's worst length error, in %
+
+    Only steps at the sweep's poses are found (a step that a narrow spike makes, or one away
+    from the other coordinates' defaults, can be missed): the floors are lower bounds.
+    """
+    from .lengthvia import outlying_changes
+
+    pair = _Pair(osim_path, mjcf_path, assembly_accuracy)
+    names = [n for n, _, _ in pair.matched]
+    out: list[dict[str, Any]] = []
+    spans = pair.spanned()
+
+    def lengths(cname: str, q: float) -> np.ndarray:
+        return pair.os_lengths(pair.os_state({**pair.defaults, cname: float(q)}, assemble=False))
+
+    for c in pair.indep:
+        cname = c.getName()
+        paths = [i for i, n in enumerate(names) if cname in spans.get(n, set())]
+        if not paths:
+            continue
+        qs = pair.sweep_values(c, step, linear_step)
+        L = np.array([lengths(cname, q) for q in qs])[:, paths]
+        dL = np.diff(L, axis=0)
+        for col, i in enumerate(paths):
+            for k in np.flatnonzero(outlying_changes(dL[:, col], min_step / 2)):
+                a, b = float(qs[k]), float(qs[k + 1])
+                la, lb = float(L[k, col]), float(L[k + 1, col])
+                for _ in range(bisections):
+                    mid = 0.5 * (a + b)
+                    lm = float(lengths(cname, mid)[i])
+                    if abs(lm - la) >= abs(lb - lm):
+                        b, lb = mid, lm
+                    else:
+                        a, la = mid, lm
+                if abs(lb - la) > min_step:
+                    out.append({"path": names[i], "coordinate": cname, "at": 0.5 * (a + b),
+                                "height": lb - la, "length": [la, lb],
+                                "floor_pct": 100.0 * abs(lb - la) / 2.0 / max(la, lb)})
+    out.sort(key=lambda s: -s["floor_pct"])
+    return out
+
+
+def continuous_tendon_front(
+    osim_path: str | os.PathLike,
+    mjcf_path: str | os.PathLike,
+    muscle: str,
+    coordinate: str,
+    *,
+    pcts: Sequence[float] = (LEN_PCT,),
+    n: int = 600,
+    assembly_accuracy: float | None = 1e-12,
+) -> dict[str, Any]:
+    """What any continuous tendon can reach against OpenSim, for one path along one coordinate.
+
+    A MuJoCo tendon has one length, and its moment arm is ``-dL/dq`` of it. OpenSim's length can
+    step (wraps switching), and its ``computeMomentArm`` need not be ``-dL/dq`` of its length
+    (several wraps on one segment; a MovingPathPoint next to a point of its own body). Sweeping
+    ``coordinate`` (``n`` poses over its range, the others at their defaults), this finds, for
+    each length tolerance p in ``pcts`` (% of OpenSim's length at every pose), the least RMS and
+    the largest moment-arm error against ``computeMomentArm`` of any continuous length within it
+    (a bounded least-squares problem over the length at the sweep poses,
+    :func:`scipy.optimize.lsq_linear`), or None where OpenSim's largest step leaves none within p
+    (:func:`opensim_length_steps`). OpenSim's one-pose spikes (two opposite outlying changes, as
+    :func:`o2m.lengthvia.outlying_changes` finds them) are no target. These are lower bounds for
+    the issue's errors, which sample every coordinate.
+
+    Returns ``{"q", "length", "moment_arm"`` (computeMomentArm) ``: (n,) arrays; "steps": the
+    path's steps along the coordinate; "spikes": [q]; "inconsistency_rms", "inconsistency_max":
+    computeMomentArm - (-dL/dq) away from outlying length changes (steps, spikes) (m); "floor_pct": the largest step's
+    floor; "front": {p: {"rms", "max"} (m) or None}}``.
+    """
+    from scipy.optimize import lsq_linear
+
+    from .lengthvia import outlying_changes
+
+    pair = _Pair(osim_path, mjcf_path, assembly_accuracy)
+    c = pair.coord(coordinate)
+    force = pair.force(muscle)
+    lo, hi = _sample_bounds(c)
+    qs = np.linspace(lo, hi, n)
+    h = float(qs[1] - qs[0])
+    length, arm = [], []
+    for q in qs:
+        state = pair.os_state({**pair.defaults, coordinate: float(q)}, assemble=False)
+        length.append(force.getLength(state))
+        arm.append(force.computeMomentArm(state, c))
+    length_a, arm_a = np.array(length), np.array(arm)
+    arm_mid = 0.5 * (arm_a[1:] + arm_a[:-1])
+    d = np.diff(length_a)
+    odd = outlying_changes(d)
+    spike = np.zeros(n, bool)
+    spike[1:-1] = odd[:-1] & odd[1:] & (np.sign(d[:-1]) != np.sign(d[1:]))
+    spiky = spike[:-1] | spike[1:]
+    steps = [s for s in opensim_length_steps(osim_path, mjcf_path, assembly_accuracy=assembly_accuracy)
+             if s["path"] == muscle and s["coordinate"] == coordinate]
+    diff = (arm_mid + d / h)[~odd]  # away from every outlying change: steps, spikes, kinks
+    floor = max((st["floor_pct"] for st in steps), default=0.0)
+    D = (np.eye(n, k=1) - np.eye(n))[:-1] / h
+    front: dict[float, dict[str, float] | None] = {}
+    for p in pcts:
+        if p <= floor:
+            front[float(p)] = None
+            continue
+        lo_b = np.where(spike, 0.0, length_a * (1 - p / 100))
+        hi_b = np.where(spike, 2.0 * length_a, length_a * (1 + p / 100))
+        r = lsq_linear(-D[~spiky], arm_mid[~spiky], bounds=(lo_b, hi_b))
+        res = -D[~spiky] @ r.x - arm_mid[~spiky]
+        front[float(p)] = {"rms": float(np.sqrt(np.mean(res**2))), "max": float(np.max(np.abs(res)))}
+    return {"q": qs, "length": length_a, "moment_arm": arm_a, "steps": steps, "spikes": qs[spike].tolist(),
+            "inconsistency_rms": float(np.sqrt(np.mean(diff**2))) if diff.size else 0.0,
+            "inconsistency_max": float(np.max(np.abs(diff))) if diff.size else 0.0, "floor_pct": floor,
+            "front": front}
 
 
 def _moment_arm_curve(pair: _Pair, muscle: str, coordinate: str, n: int, method: str

@@ -13,7 +13,8 @@ moment arms match OpenSim's over sampled poses:
   them), for every coordinate the path spans. For a tendon whose same-body segments are held
   (``path_forces="opensim"``, :mod:`o2m.tendons`) the targets are what that tendon stands for:
   the length with those segments replaced by their held length, and its ``-dL/dq`` (OpenSim's
-  ``computeMomentArm``).
+  ``computeMomentArm``); for one with a length via point (:mod:`o2m.lengthvia`), its designed
+  length and that length's ``-dL/dq``.
 * Objective: mean squared length error plus mean squared moment-arm error, both in mm².
   MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a reduced copy of the model
   (that tendon only, no meshes) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are changed in
@@ -337,12 +338,25 @@ def _wrap_contacts(pair: Any, state: Any, tendon: str, wraps: set[str]) -> dict[
     return out
 
 
+def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: dict[str, int]) -> np.ndarray:
+    """(n paths,) what a tendon with length via points differs from OpenSim's getLength in
+    ``state`` (:func:`o2m.lengthvia.designed_correction`; 0 for other paths)."""
+    from .lengthvia import designed_correction
+
+    out = np.zeros(len(col))
+    for name, vias in designed.items():
+        if name in col:
+            out[col[name]] = sum(designed_correction(pair.os_model, state, v) for v in vias)
+    return out
+
+
 def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
              held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
-             n_contact: int = 0) -> tuple[Any, dict[str, dict[str, Any]]]:
+             n_contact: int = 0, designed: dict[str, list] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
-    (of the held tendon, for the paths in ``held``) and, over the first ``n_contact`` poses, the
-    wrap-arc points of each tendon's wrap objects named in ``contacts`` (tendon -> wrap names)."""
+    (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
+    ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
+    wrap objects named in ``contacts`` (tendon -> wrap names)."""
     from .validate import _sample_bounds, joint_qpos_address, resolve_joint_equalities
     from .validate_muscles import SPIKE_TOL, _coordinate_direction, _Pair, _qpos_to_dof, opensim_spikes
 
@@ -353,6 +367,11 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     spans = pair.spanned()
     wanted = [t for t in tendons if t in col]
     held = {t: h for t, h in (held or {}).items() if t in wanted}
+    designed = {t: v for t, v in (designed or {}).items() if t in wanted}
+
+    def corrected(state: Any) -> np.ndarray:
+        return (pair.os_lengths(state) + _held_correction(pair, state, held, col)
+                + _designed_correction(pair, state, designed, col))
     coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
                     key=pair.indep_names.index)
     rng = np.random.default_rng(seed)
@@ -369,16 +388,16 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
             state = pair.os_state(values)
             values = pair.os_indep_values(state)
             raw = pair.os_lengths(state)
-            base = raw + _held_correction(pair, state, held, col)
+            base = corrected(state)
             arm = np.zeros((len(names), len(coords)))
             asm = bool(pair.dependent)
             for j, c in enumerate(coords):
                 ma = []
                 for h in (OS_FD_STEP, 10 * OS_FD_STEP):
                     s_up = pair.os_state({**values, c: values[c] + h}, assemble=asm)
-                    up = pair.os_lengths(s_up) + _held_correction(pair, s_up, held, col)
+                    up = corrected(s_up)
                     s_dn = pair.os_state({**values, c: values[c] - h}, assemble=asm)
-                    dn = pair.os_lengths(s_dn) + _held_correction(pair, s_dn, held, col)
+                    dn = corrected(s_dn)
                     ma.append(-(up - dn) / (2 * h))
                 # a length discontinuity within the step (a wrap flipping) is no moment arm
                 arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
@@ -420,14 +439,16 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
 def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any], *, seed: int = 0,
               quick: bool | None = None, workers: int | None = None, progress: bool = False,
               n_poses: int | None = None, evals: int | None = None,
-              held: dict[str, dict] | None = None) -> list[PathFit]:
+              held: dict[str, dict] | None = None, designed: dict[str, list] | None = None) -> list[PathFit]:
     """Fit the wrap geoms and side sites of every tendon in ``path_geoms`` (each a
     :class:`o2m.tendons.PathGeom`) of the model ``xml`` (MJCF text) to OpenSim ``osim_path``.
 
     ``quick`` (default: :func:`quick_mode`) uses :data:`QUICK` sizes instead of :data:`FULL`;
     ``n_poses``/``evals`` override them. ``workers`` processes (default: every core) fit the
     tendons in parallel. ``held`` (:attr:`o2m.tendons.TendonBuilder.held`) names the tendons whose
-    same-body segments are held, and how. Returns one :class:`PathFit` per tendon, in
+    same-body segments are held, and how; ``designed`` (tendon -> its
+    :class:`o2m.lengthvia.LengthVia` records) the tendons whose lengths are designed there (their
+    targets are those lengths). Returns one :class:`PathFit` per tendon, in
     ``path_geoms`` order.
     """
 
@@ -446,7 +467,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
             fh.write(reduced_xml(xml))
         ellipsoids = {t: {g.source for g in gs if g.kind == "WrapEllipsoid"} for t, gs in by_tendon.items()}
         _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
-                              ellipsoids, n_fit)
+                              ellipsoids, n_fit, designed)
     tasks = []
     for k, (tendon, geoms) in enumerate(by_tendon.items()):
         tg = targets.get(tendon)

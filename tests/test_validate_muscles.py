@@ -32,6 +32,7 @@ from o2m.validate_muscles import (
     moment_arm_curve,
     mujoco_moment_arms,
     mujoco_tendon_lengths,
+    opensim_length_steps,
     plot_moment_arms,
     sweep_jumps,
 )
@@ -357,6 +358,12 @@ def test_sweep_finds_wrapping_flip(arm):
     assert j["mujoco"] > 5e-3 and j["opensim"] < 2e-3
     assert s["worst"]["bic"]["coordinate"] == "q_el"
     assert {x["tendon"] for x in s["jumps"]} == {"bic"}
+
+
+def test_continuous_opensim_paths_have_no_steps(arm):
+    """Fixed-point paths are continuous: the step finder reports nothing (its threshold is not
+    met by a steep but smooth length, ~1 degree x the moment arm per sweep interval)."""
+    assert opensim_length_steps(arm["osim"], arm["good"], min_step=1e-4) == []
 
 
 def test_missing_tendon_fails(arm):
