@@ -30,7 +30,8 @@ def cmd_convert(a: argparse.Namespace) -> int:
     from .convert import convert
 
     osim, geometry = _osim_path(a.model, a.geometry)
-    result = convert(osim, a.output, geometry_dirs=geometry, path_forces=a.path_forces)
+    result = convert(osim, a.output, geometry_dirs=geometry, path_forces=a.path_forces,
+                     length_vias=not a.no_length_vias)
     print(result.report.summary() if a.verbose else
           f"wrote {result.xml} ({result.report.seconds:.2f} s; {len(result.report.approximations)} "
           f"approximations, {len(result.report.skipped)} elements skipped; see "
@@ -206,6 +207,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "tension): tendon = OpenSim's length ('kinematic'), OpenSim's force transmission "
                         "('opensim'), or per muscle by how much holding the segment changes its length ('auto', "
                         "default)")
+    c.add_argument("--no-length-vias", action="store_true",
+                   help="keep one wrap per segment where several share it, instead of a length via point "
+                        "(o2m.lengthvia)")
     c.set_defaults(func=cmd_convert)
     v = sub.add_parser("validate", help="compare a converted model with OpenSim over random poses")
     v.add_argument("osim")

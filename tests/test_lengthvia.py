@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import mujoco
 import numpy as np
 import pytest
@@ -103,3 +105,13 @@ def test_without_length_vias_one_wrap_is_left_out(converted):
     assert "TRIlong-length_via" in sites
     assert not any(n and n.startswith("wrap_TRIlongglen") for n in
                    (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, i) for i in range(m.ngeom)))
+
+
+def test_command_line_can_turn_them_off(arm26, tmp_path):
+    from o2m.cli import main
+
+    fetched = arm26[0]
+    assert main(["convert", str(fetched.osim), "-o", str(tmp_path), "--no-length-vias"]) == 0
+    report = json.loads(next(tmp_path.glob("*.report.json")).read_text())
+    assert report["length_vias"] == []
+    assert any("TRIlonghh' left out" in n for n in report["notes"])
