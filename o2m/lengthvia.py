@@ -200,7 +200,7 @@ def _sweep(osim_path: str, path: Path, seg: int, cname: str, qs: np.ndarray) -> 
     a, b = path.points[seg], path.points[seg + 1]
     total, part, arm, p2, bulge = [], [], [], [], []
     for q in qs:
-        coord.setValue(state, float(q), False)
+        coord.setValue(state, float(q), True)  # assembled: coupled coordinates follow it
         model.realizePosition(state)
         total.append(gp.getLength(state))
         arm.append(gp.computeMomentArm(state, coord))
@@ -251,12 +251,12 @@ def design(osim_path: str, builder: MjcfBuilder, path: Path, seg: int, cname: st
         return None
     k = int(np.argmax(np.where(spike, -np.inf, excess)))
     line = w[k] / straight[k]
-    best, u = -1.0, None
+    far, u = -1.0, np.zeros(3)
     for pt in s["bulge"][k]:
         v = pt - p1
         perp = v - (v @ line) * line
-        if np.linalg.norm(perp) > best:
-            best, u = float(np.linalg.norm(perp)), perp
+        if np.linalg.norm(perp) > far:
+            far, u = float(np.linalg.norm(perp)), perp
     u = u / np.linalg.norm(u)
 
     n = len(qs)
