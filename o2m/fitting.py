@@ -367,6 +367,15 @@ class FitResult:
         return {n: float(10.0 ** v) for n, v in zip(self.names, self.x, strict=False)}
 
 
+def checkpoint_matches(path: str | os.PathLike[str], space: ParameterSpace, seed: int) -> bool:
+    """Whether the :func:`fit_cma` checkpoint at ``path`` is of a fit over ``space`` (its
+    parameters and start) with ``seed``, so that it can be resumed."""
+    with open(path, "rb") as f:
+        state = pickle.load(f)
+    same_start = "x0" in state and np.array_equal(state["x0"], space.x0)
+    return state["names"] == space.names and state["seed"] == seed and same_start
+
+
 def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.1, popsize: int | None = None,
             generations: int = 100, checkpoint: str | os.PathLike[str] | None = None, progress: bool = True,
             settings: dict | None = None, validation: TrajectoryObjective | None = None) -> FitResult:
@@ -390,12 +399,11 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
     ckpt = Path(checkpoint) if checkpoint else None
     state = None
     if ckpt is not None and ckpt.exists():
-        with open(ckpt, "rb") as f:
-            state = pickle.load(f)
-        same_start = "x0" in state and np.array_equal(state["x0"], space.x0)
-        if state["names"] != space.names or state["seed"] != seed or not same_start:
+        if not checkpoint_matches(ckpt, space, seed):
             raise ValueError(f"checkpoint {ckpt} belongs to another fit (different parameters, start or seed); "
                              "delete it")
+        with open(ckpt, "rb") as f:
+            state = pickle.load(f)
     t_start = time.perf_counter()
     if state is None:
         cost0 = float(objective(space.x0[None])[0])

@@ -32,7 +32,16 @@ import mujoco
 import numpy as np
 
 from o2m.dataset import Dataset, load_dataset
-from o2m.fitting import FitResult, TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit
+from o2m.fitting import (
+    FitResult,
+    TrajectoryObjective,
+    checkpoint_matches,
+    fit_cma,
+    free_coordinates,
+    load_fit,
+    parameter_space,
+    save_fit,
+)
 from o2m.force_fit import ForceFit, fit_forces, sample_states, static_curves
 from o2m.mujoco_sim import controls_from_excitations, initial_state, muscle_activations, rollout
 
@@ -162,8 +171,12 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         if fit.names != space.names:
             raise ValueError(f"{fit_file} has other parameters than this model; rerun with refit=True")
     else:
+        ckpt = out / "checkpoint.pkl"
+        if ckpt.exists() and not checkpoint_matches(ckpt, objective.space, settings.seed):
+            print(f"{ckpt}: left by a fit from another start (an earlier run); starting afresh")
+            ckpt.unlink()
         fit = fit_cma(objective, seed=settings.seed, generations=settings.generations, popsize=settings.popsize,
-                      checkpoint=out / "checkpoint.pkl", progress=progress, validation=validation,
+                      checkpoint=ckpt, progress=progress, validation=validation,
                       settings={"train_sets": train, "validation_sets": held, "data": str(data_dir),
                                 "xml": exp.xml.name})
         save_fit(fit_file, fit, space)

@@ -8,7 +8,15 @@ import pytest
 
 from o2m.activations import generate_activations
 from o2m.corrections import bspline_basis, corrected_excitations, fit_corrections
-from o2m.fitting import TrajectoryObjective, fit_cma, free_coordinates, load_fit, parameter_space, save_fit
+from o2m.fitting import (
+    TrajectoryObjective,
+    checkpoint_matches,
+    fit_cma,
+    free_coordinates,
+    load_fit,
+    parameter_space,
+    save_fit,
+)
 from o2m.mujoco_sim import controls_from_excitations, initial_state, rollout
 
 PENDULUM = """
@@ -86,6 +94,9 @@ def test_fit_recovers_a_known_damping(tmp_path):
     other, o_init, o_ctrl, o_ref = _setup(0.5, 0.2)
     o_space = parameter_space(other, ["swing"], [])
     o_obj = TrajectoryObjective(other, o_space, o_init, o_ctrl, o_ref, ["swing"], penalty=0.0)
+    assert checkpoint_matches(tmp_path / "ckpt.pkl", obj.space, 0)
+    assert not checkpoint_matches(tmp_path / "ckpt.pkl", o_space, 0)
+    assert not checkpoint_matches(tmp_path / "ckpt.pkl", obj.space, 1)
     with pytest.raises(ValueError, match="another fit"):
         fit_cma(o_obj, seed=0, sigma0=0.2, generations=45, checkpoint=tmp_path / "ckpt.pkl", progress=False)
 
