@@ -34,7 +34,7 @@ def _plt():
 def joint_error_bars(dofs: list[str], errors: dict[str, np.ndarray]):
     """Grouped bars of the mean absolute error per joint (rad); ``errors`` maps a label to (n_sets, n_dofs)."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 3.5))
+    fig, ax = plt.subplots(figsize=(9, 3.5))
     width = 0.8 / max(1, len(errors))
     x = np.arange(len(dofs))
     for k, (label, e) in enumerate(errors.items()):
@@ -43,7 +43,7 @@ def joint_error_bars(dofs: list[str], errors: dict[str, np.ndarray]):
     ax.set_xticks(x, dofs, rotation=20)
     ax.set_ylabel("mean absolute error (rad)")
     ax.set_title("Joint error against OpenSim, test sets")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, not over them
     fig.tight_layout()
     return fig
 
