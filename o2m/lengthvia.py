@@ -47,7 +47,7 @@ import numpy as np
 from .functions import PolynomialFunction
 from .mjcf import Approximation, MjcfBuilder
 from .paths import Path, PathPoint, WrapObject
-from .tendons import _segment_distance
+from .tendons import _segment_distance, wrap_segments
 from .transforms import Transform
 
 #: Poses of the sweep over the coordinate (its range, evenly spaced).
@@ -101,9 +101,7 @@ def shared_segments(path: Path, wraps: dict[str, WrapObject], ground_frames: dic
         wrap = wraps.get(pw.wrap)
         if wrap is None or not wrap.active:
             continue
-        lo, hi = pw.range
-        first = 0 if lo < 1 else lo - 1
-        last = n - 2 if hi < 1 else min(hi - 1, n - 1) - 1
+        first, last = wrap_segments(pw.range, n)
         if last < first:
             continue
         centre = (ground_frames[wrap.body] @ wrap.frame).pos
@@ -132,6 +130,15 @@ def coordinates_between(builder: MjcfBuilder, a: str, b: str) -> set[str]:
                 if not builder.skel.coordinates[c].locked:
                     coords.add(builder.drivers[c].base)
     return {c for c in coords if not builder.skel.coordinates[c].locked}
+
+
+def one_pose_spikes(d: np.ndarray, odd: np.ndarray) -> np.ndarray:
+    """(n + 1,) bool: the sweep poses where a length leaves and comes back within one interval
+    either side (two opposite outlying changes next to each other), from its changes ``d`` (n,)
+    and their :func:`outlying_changes` ``odd`` (n,)."""
+    spike = np.zeros(len(d) + 1, bool)
+    spike[1:-1] = odd[:-1] & odd[1:] & (np.sign(d[:-1]) != np.sign(d[1:]))
+    return spike
 
 
 def outlying_changes(d: np.ndarray, tol: float = OUTLIER) -> np.ndarray:
@@ -238,8 +245,7 @@ def design(osim_path: str, builder: MjcfBuilder, path: Path, seg: int, cname: st
 
     d = np.diff(s["part"])
     odd = outlying_changes(d)
-    spike = np.zeros(len(qs), bool)
-    spike[1:-1] = odd[:-1] & odd[1:] & (np.sign(d[:-1]) != np.sign(d[1:]))
+    spike = one_pose_spikes(d, odd)
     spiky = spike[:-1] | spike[1:]
     steps = [float(x) for x, o, sp in zip(d, odd, spiky, strict=True) if o and not sp]
     floor = max((100.0 * abs(d[k]) / 2.0 / float(max(s["total"][k], s["total"][k + 1]))

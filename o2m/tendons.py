@@ -584,9 +584,7 @@ class TendonBuilder:
                 raise self.b.doc.error(path.element, f"wraps over '{pw.wrap}', which no body defines")
             if not wrap.active:
                 continue
-            lo, hi = pw.range
-            first = 0 if lo < 1 else lo - 1
-            last = n - 2 if hi < 1 else min(hi - 1, n - 1) - 1
+            first, last = wrap_segments(pw.range, n)
             centre = (self.b.ground_frames[wrap.body] @ wrap.frame).pos
             size = max(wrap.radius, float(np.max(wrap.dimensions)), wrap.outer_radius)
             for seg in range(first, last + 1):
@@ -834,6 +832,15 @@ class TendonBuilder:
             act.set_to_muscle(timeconst=[0.01, 0.04], tausmooth=0.0, force=fmax)
         elif path.owner_type != "Ligament":  # a ligament's spring is added by o2m.forces
             self.b.result.notes.append(f"{path.owner_type} '{path.owner}': tendon only (no actuator yet)")
+
+
+def wrap_segments(wrap_range: tuple[int, int], n_points: int) -> tuple[int, int]:
+    """The first and last path segment (0-based; segment k joins points k and k+1) that a wrap
+    with OpenSim's 1-based point ``range`` (-1: all) may act on, of a path of ``n_points``."""
+    lo, hi = wrap_range
+    first = 0 if lo < 1 else lo - 1
+    last = n_points - 2 if hi < 1 else min(hi - 1, n_points - 1) - 1
+    return first, last
 
 
 def _segment_distance(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:

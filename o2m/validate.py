@@ -526,7 +526,8 @@ def compare_kinematics(
     mass_os = float(sum(b.getMass() for b in os_bodies.values()))
     # the mass gravity acts on: o2m's path-point carriers on world-welded bodies carry mass for
     # MuJoCo's constraint solver with their weight cancelled (gravcomp), and move nothing else
-    mass_mj = float((mj_model.body_mass * (1.0 - mj_model.body_gravcomp)).sum())
+    weight = mj_model.body_mass * (1.0 - mj_model.body_gravcomp)  # (nbody,) kg
+    mass_mj = float(weight.sum())
 
     # Poses.
     rng = np.random.default_rng(seed)
@@ -583,8 +584,7 @@ def compare_kinematics(
         dpos = np.linalg.norm(pos_mj - pos_os, axis=1)
         dang = rotation_angle(np.swapaxes(rot_mj, 1, 2) @ rot_os)
         com_os = OSIM_TO_MJ @ os_model.calcMassCenterPosition(state).to_numpy()
-        weight = mj_model.body_mass * (1.0 - mj_model.body_gravcomp)  # as the mass above
-        com_mj = (weight[:, None] * mj_data.xipos).sum(axis=0) / max(float(weight.sum()), 1e-300)
+        com_mj = (weight[:, None] * mj_data.xipos).sum(axis=0) / max(mass_mj, 1e-300)  # as the mass
         com_err = float(np.linalg.norm(com_mj - com_os))
 
         sq_sum += dpos**2

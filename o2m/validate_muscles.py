@@ -1029,12 +1029,12 @@ def continuous_tendon_front(
 
     Returns ``{"q", "length", "moment_arm"`` (computeMomentArm) ``: (n,) arrays; "steps": the
     path's steps along the coordinate; "spikes": [q]; "inconsistency_rms", "inconsistency_max":
-    computeMomentArm - (-dL/dq) away from outlying length changes (steps, spikes) (m); "floor_pct": the largest step's
-    floor; "front": {p: {"rms", "max"} (m) or None}}``.
+    computeMomentArm - (-dL/dq) away from outlying length changes (steps, spikes) (m);
+    "floor_pct": the largest step's floor; "front": {p: {"rms", "max"} (m) or None}}``.
     """
     from scipy.optimize import lsq_linear
 
-    from .lengthvia import outlying_changes
+    from .lengthvia import one_pose_spikes, outlying_changes
 
     pair = _Pair(osim_path, mjcf_path, assembly_accuracy)
     c = pair.coord(coordinate)
@@ -1051,8 +1051,7 @@ def continuous_tendon_front(
     arm_mid = 0.5 * (arm_a[1:] + arm_a[:-1])
     d = np.diff(length_a)
     odd = outlying_changes(d)
-    spike = np.zeros(n, bool)
-    spike[1:-1] = odd[:-1] & odd[1:] & (np.sign(d[:-1]) != np.sign(d[1:]))
+    spike = one_pose_spikes(d, odd)
     spiky = spike[:-1] | spike[1:]
     steps = [s for s in opensim_length_steps(osim_path, mjcf_path, assembly_accuracy=assembly_accuracy)
              if s["path"] == muscle and s["coordinate"] == coordinate]

@@ -369,9 +369,9 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     held = {t: h for t, h in (held or {}).items() if t in wanted}
     designed = {t: v for t, v in (designed or {}).items() if t in wanted}
 
-    def corrected(state: Any) -> np.ndarray:
-        return (pair.os_lengths(state) + _held_correction(pair, state, held, col)
-                + _designed_correction(pair, state, designed, col))
+    def corrections(state: Any) -> np.ndarray:
+        """What each target differs from OpenSim's getLength in ``state`` (held, designed)."""
+        return _held_correction(pair, state, held, col) + _designed_correction(pair, state, designed, col)
     coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
                     key=pair.indep_names.index)
     rng = np.random.default_rng(seed)
@@ -388,16 +388,16 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
             state = pair.os_state(values)
             values = pair.os_indep_values(state)
             raw = pair.os_lengths(state)
-            base = corrected(state)
+            base = raw + corrections(state)
             arm = np.zeros((len(names), len(coords)))
             asm = bool(pair.dependent)
             for j, c in enumerate(coords):
                 ma = []
                 for h in (OS_FD_STEP, 10 * OS_FD_STEP):
                     s_up = pair.os_state({**values, c: values[c] + h}, assemble=asm)
-                    up = corrected(s_up)
+                    up = pair.os_lengths(s_up) + corrections(s_up)
                     s_dn = pair.os_state({**values, c: values[c] - h}, assemble=asm)
-                    dn = corrected(s_dn)
+                    dn = pair.os_lengths(s_dn) + corrections(s_dn)
                     ma.append(-(up - dn) / (2 * h))
                 # a length discontinuity within the step (a wrap flipping) is no moment arm
                 arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
