@@ -1,5 +1,5 @@
 """``python -m o2m``: the command-line interface (see :mod:`o2m.cli`)."""
 
-from .cli import main
+from o2m.cli import main
 
 raise SystemExit(main())

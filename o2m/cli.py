@@ -7,18 +7,19 @@ for wrong usage.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .errors import O2MError
+from o2m.errors import O2MError
 
 
 def _osim_path(arg: str, geometry: list[str]) -> tuple[Path, list[str]]:
     """A path, or the name of a bundled model (fetched into the cache with its meshes)."""
-    from . import models
+    from o2m import models
 
     if arg in models.BUNDLED:
         fetched = models.fetch_model_with_geometry(arg)
@@ -26,21 +27,37 @@ def _osim_path(arg: str, geometry: list[str]) -> tuple[Path, list[str]]:
     return Path(arg), geometry
 
 
+def _quick(a: argparse.Namespace) -> bool:
+    """Quick mode: ``--quick``, or ``O2M_QUICK`` set to anything but 0 (as CI does)."""
+    return bool(getattr(a, "quick", False)) or os.environ.get("O2M_QUICK", "") not in ("", "0")
+
+
 def cmd_convert(a: argparse.Namespace) -> int:
-    from .convert import convert
+    from o2m.convert import ConvertOptions, convert
+    from o2m.validate.sweeps import format_moment_arm_report, moment_arm_report
 
     osim, geometry = _osim_path(a.model, a.geometry)
-    result = convert(osim, a.output, geometry_dirs=geometry, path_forces=a.path_forces,
-                     length_vias=not a.no_length_vias)
+    quick = _quick(a)
+    options = ConvertOptions(path_forces=a.path_forces, length_vias=not a.no_length_vias, quick=quick)
+    result = convert(osim, a.output, options, geometry_dirs=geometry)
     print(result.report.summary() if a.verbose else
           f"wrote {result.xml} ({result.report.seconds:.2f} s; {len(result.report.approximations)} "
           f"approximations, {len(result.report.skipped)} elements skipped; see "
           f"{result.xml.with_suffix('.report.txt')})")
+    if a.moment_arm_plots:
+        pdf = result.xml.with_suffix(".moment_arms.pdf")
+        rows = moment_arm_report(osim, result.xml, pdf, n=21 if quick else 41,
+                                 title=f"{result.report.model}: moment arms (mm)")
+        if rows:
+            print(f"moment arms over one-coordinate sweeps -> {pdf}; each path's worst pair, max |MuJoCo - OpenSim| "
+                  "in mm:" if a.verbose else f"moment-arm plots -> {pdf}")
+            if a.verbose:
+                print("\n".join(format_moment_arm_report(rows)))
     return 0
 
 
 def cmd_validate(a: argparse.Namespace) -> int:
-    from .validate import compare_kinematics
+    from o2m.validate import compare_kinematics
 
     rep = compare_kinematics(a.osim, a.xml, n_poses=a.poses, seed=a.seed, progress=True)
     print(rep.summary())
@@ -48,7 +65,7 @@ def cmd_validate(a: argparse.Namespace) -> int:
 
 
 def cmd_fetch(a: argparse.Namespace) -> int:
-    from . import models
+    from o2m import models
 
     if a.all or not a.names:
         paths = models.fetch_all()
@@ -60,17 +77,18 @@ def cmd_fetch(a: argparse.Namespace) -> int:
 
 def cmd_run(a: argparse.Namespace) -> int:
     """The main job: fetch every bundled model, convert it, and measure it against OpenSim."""
-    from . import models
-    from .convert import convert
-    from .validate import compare_kinematics, format_table
+    from o2m import models
+    from o2m.convert import ConvertOptions, convert
+    from o2m.validate import compare_kinematics, format_table
 
     out = Path(a.out)
+    options = ConvertOptions(quick=_quick(a))
     poses = 20 if a.quick else a.poses
     reports, times = {}, {}
     for name in models.BUNDLED:
         fetched = models.fetch_model_with_geometry(name, progress=False)
         t0 = time.perf_counter()
-        conv = convert(fetched.osim, out / name, geometry_dirs=[fetched.geometry_dir])
+        conv = convert(fetched.osim, out / name, options, geometry_dirs=[fetched.geometry_dir])
         times[name] = time.perf_counter() - t0
         print(f"converted {name:18s} in {times[name]:5.2f} s -> {conv.xml}")
         reports[name] = compare_kinematics(fetched.osim, conv.xml, n_poses=poses, seed=a.seed, progress=False)
@@ -82,7 +100,7 @@ def cmd_run(a: argparse.Namespace) -> int:
 
 def cmd_dataset(a: argparse.Namespace) -> int:
     """Generate the MoBL-ARMS excitation sets and their OpenSim reference trajectories."""
-    from .dataset import make_dataset
+    from o2m.paper.dataset import make_dataset
 
     ds = make_dataset(a.out, n_sets=a.sets, seed=a.seed, timeout=a.timeout, max_workers=a.workers)
     fails = ds.failures()
@@ -101,10 +119,10 @@ def cmd_paper(a: argparse.Namespace) -> int:
     """The whole paper: dataset (stored or regenerated), conversion, fit, corrections, speed, figures."""
     import json
 
-    from .dataset import load_dataset, make_dataset
-    from .figures import make_figures
-    from .paper import FULL, QUICK, run_paper
-    from .speed import measure_speed
+    from o2m.paper.dataset import load_dataset, make_dataset
+    from o2m.paper.figures import make_figures
+    from o2m.paper.pipeline import FULL, QUICK, run_paper
+    from o2m.paper.speed import measure_speed
 
     data = Path(a.data)
     out = Path(a.out)
@@ -160,7 +178,7 @@ def cmd_paper(a: argparse.Namespace) -> int:
 
 
 def cmd_figures(a: argparse.Namespace) -> int:
-    from .figures import make_figures
+    from o2m.paper.figures import make_figures
 
     written = make_figures(a.results, a.figures)
     print("\n".join(map(str, written)) or "no results found")
@@ -170,7 +188,7 @@ def cmd_figures(a: argparse.Namespace) -> int:
 def cmd_speed(a: argparse.Namespace) -> int:
     import json
 
-    from .speed import measure_speed
+    from o2m.paper.speed import measure_speed
 
     speed = measure_speed(a.data, n_sets=a.sets)
     print(json.dumps({k: v for k, v in speed.items() if not isinstance(v, list)}, indent=1))
@@ -183,8 +201,8 @@ def cmd_replay(a: argparse.Namespace) -> int:
     """Replay an OpenSim .mot/.sto coordinate motion on a converted model, as a meshcat HTML page."""
     import mujoco
 
-    from .motion import load_motion, resample_motion
-    from .viewer import animate_qpos
+    from o2m.viz.motion import load_motion, resample_motion
+    from o2m.viz.viewer import animate_qpos
 
     model = mujoco.MjModel.from_xml_path(a.xml)
     motion = resample_motion(load_motion(a.motion, model), model, a.fps)
@@ -209,7 +227,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "default)")
     c.add_argument("--no-length-vias", action="store_true",
                    help="keep one wrap per segment where several share it, instead of a length via point "
-                        "(o2m.lengthvia)")
+                        "(o2m.convert.lengthvia)")
+    c.add_argument("--quick", action="store_true", help="the wrap fits' small sizes (also with O2M_QUICK=1)")
+    c.add_argument("--no-moment-arm-plots", dest="moment_arm_plots", action="store_false",
+                   help="skip the moment-arm sweeps against OpenSim (<stem>.moment_arms.pdf)")
     c.set_defaults(func=cmd_convert)
     v = sub.add_parser("validate", help="compare a converted model with OpenSim over random poses")
     v.add_argument("osim")

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterable
+
 
 class O2MError(Exception):
     """Base class of every error o2m raises on purpose."""
@@ -33,3 +36,22 @@ class UnsupportedElementError(O2MError):
 
 class FetchError(O2MError):
     """A model file could not be fetched or failed its sha256 check."""
+
+
+class ValidationError(O2MError):
+    """The two models cannot be compared (a model fails to load, or they do not correspond)."""
+
+
+class MissingJointError(ValidationError):
+    """Independent OpenSim coordinates have no MuJoCo joint of the same name.
+
+    ``missing`` lists the coordinate names.
+    """
+
+    def __init__(self, missing: Iterable[str], mjcf_path: str | os.PathLike | None = None):
+        self.missing = sorted(missing)
+        where = f" in {os.fspath(mjcf_path)}" if mjcf_path is not None else ""
+        super().__init__(
+            f"{len(self.missing)} independent OpenSim coordinate(s) have no MuJoCo hinge/slide joint "
+            f"of the same name{where}: {', '.join(self.missing)}"
+        )

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 
@@ -10,18 +9,13 @@ import pytest
 
 from o2m import models
 from o2m.errors import FetchError
+from tests.helpers import mirror as local_mirror
 
 
 def _real_mirror() -> Path | None:
     """The shared local copy of the registry files, wherever this checkout sits."""
-    candidates = [Path(__file__).resolve().parents[2] / "shared" / "models", Path("/work/shared/models")]
-    env = os.environ.get(models.MIRROR_ENV)
-    if env:
-        candidates.insert(0, Path(env))
-    for c in candidates:
-        if (c / models.BUNDLED["arm26"]).is_file():
-            return c
-    return None
+    c = local_mirror()
+    return c if c is not None and (c / models.BUNDLED["arm26"]).is_file() else None
 
 
 REAL_MIRROR = _real_mirror()

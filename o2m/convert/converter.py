@@ -1,0 +1,253 @@
+"""Converting an .osim file into a MuJoCo model folder, with a conversion report.
+
+``convert("arm26.osim", "out/")`` writes ``out/arm26.xml``, its meshes in ``out/meshes/``, and
+``out/arm26.report.json`` plus ``out/arm26.report.txt``. Output is assembled in a temporary
+folder and moved into place only after MuJoCo has compiled it, so a failed conversion leaves
+no half-written model behind.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+from o2m.convert import forces
+from o2m.convert.builder import Approximation, MjcfBuilder, add_geometry
+from o2m.convert.lengthvia import add_length_vias
+from o2m.convert.muscles import fit_muscles
+from o2m.convert.report import ConversionReport
+from o2m.convert.tendons import PATH_FORCE_MODES, add_paths, restore_geom_precision, tendon_length_ranges
+from o2m.convert.wrapfit import apply_fits, fit_paths
+from o2m.errors import O2MError
+from o2m.osim.document import load_document
+from o2m.osim.paths import MUSCLE_TYPES, read_paths, read_wrap_objects
+from o2m.osim.skeleton import SkeletonReader, Skipped, read_skeleton
+
+MESH_FOLDER = "meshes"
+
+
+@dataclass
+class Conversion:
+    """Result of :func:`convert`: the written MJCF path and the report."""
+
+    xml: Path
+    report: ConversionReport
+
+
+@dataclass(frozen=True)
+class ConvertOptions:
+    """How :func:`convert` converts; the defaults give the most faithful model.
+
+    Attributes:
+        fit_mechanics: fit each muscle actuator's force-length-velocity parameters to OpenSim's
+            forces (:func:`o2m.convert.muscles.fit_muscles`); without it muscles get MuJoCo's defaults.
+        fit_wraps: fit the wrap geoms and side sites of every path with wrapping or conditional
+            points to OpenSim's lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`).
+        length_vias: replace the wraps that share one path segment, where one coordinate moves it,
+            by a moving via point of designed length (:mod:`o2m.convert.lengthvia`).
+        path_forces: for a path with a MovingPathPoint next to a point of its own body, whether the
+            tendon is OpenSim's length or OpenSim's force transmission (``"auto"``, ``"opensim"``,
+            ``"kinematic"``; see :mod:`o2m.convert.tendons`). The report records each choice.
+        quick: the wrap fits' small sizes (:data:`o2m.convert.wrapfit.QUICK`), for tests and CI.
+        workers: processes for the wrap fits (None: every core).
+    """
+
+    fit_mechanics: bool = True
+    fit_wraps: bool = True
+    length_vias: bool = True
+    path_forces: str = "auto"
+    quick: bool = False
+    workers: int | None = None
+
+    def __post_init__(self):
+        if self.path_forces not in PATH_FORCE_MODES:
+            raise ValueError(f"path_forces must be one of {', '.join(PATH_FORCE_MODES)}, not {self.path_forces!r}")
+
+
+def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = ConvertOptions(),  # noqa: B008 (frozen)
+            *, geometry_dirs: Sequence[str | Path] = (), name: str | None = None) -> Conversion:
+    """Convert ``osim`` into ``out_dir/<stem>.xml`` (MuJoCo 4.0 MJCF) with its meshes and report.
+
+    ``geometry_dirs`` are extra folders searched for mesh files after the model's own folder and
+    its ``Geometry/`` subfolder, as OpenSim searches; ``name`` replaces the file's stem. Raises an
+    :class:`~o2m.errors.O2MError` subclass for bad input; nothing is written then.
+    """
+    t0 = time.perf_counter()
+    osim = Path(osim)
+    out_dir = Path(out_dir)
+    stem = name or osim.stem
+    doc = load_document(osim)
+    skel = read_skeleton(doc)
+    builder = MjcfBuilder(skel)
+    result = builder.build()
+    reader = SkeletonReader(doc)
+    paths = read_paths(reader, builder.ref)
+    wraps = read_wrap_objects(reader)
+    vias = add_length_vias(builder, paths, wraps, str(osim)) if options.length_vias else []
+    tendons = add_paths(builder, paths, wraps, path_forces=options.path_forces)
+    force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
+    muscle_skipped = _fit_mechanics(result, osim) if options.fit_mechanics and any(
+        p.owner_type in MUSCLE_TYPES for p in paths) else []
+    search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs]
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=".o2m-", dir=out_dir.parent) as tmp:
+        stage = Path(tmp)
+        geom_skipped = add_geometry(result, skel, builder.bodies, stage / MESH_FOLDER, search)
+        spec = result.spec
+        spec.meshdir = str(stage)
+        spec.compiler.LRopt.mode = mujoco.mjtLRMode.mjLRMODE_NONE  # o2m sets the length ranges itself
+        try:
+            model = spec.compile()
+            if tendons.weigh_static_carriers(model):
+                model = spec.compile()
+        except Exception as exc:
+            raise O2MError(f"{osim}: MuJoCo could not compile the converted model: {exc}") from exc
+        fits, fit_seconds = [], 0.0
+        if options.fit_wraps and tendons.path_geoms:
+            t_fit = time.perf_counter()
+            xml0 = restore_geom_precision(builder.restore_precision(spec.to_xml()), tendons.exact)
+            designed: dict[str, list] = {}
+            for v in vias:
+                designed.setdefault(v.path, []).append(v)
+            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=options.workers, held=tendons.held, quick=options.quick,
+                             designed=designed)
+            apply_fits(spec, fits, builder.exact, tendons.exact)
+            model = spec.compile()
+            fit_seconds = time.perf_counter() - t_fit
+        _set_length_ranges(spec, model, builder)
+        forces.fit_ligaments(force_conv, spec, model, builder)
+        spec.add_key(name="default-pose", qpos=model.qpos0.copy())
+        spec.compile()
+        xml_path = stage / f"{stem}.xml"
+        xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
+        xml_text = restore_geom_precision(xml_text, tendons.exact)
+        xml_path.write_text(_default_pose(xml_text, model.qpos0))
+        try:  # the written file, as a user will load it
+            written = mujoco.MjModel.from_xml_path(str(xml_path))
+        except Exception as exc:
+            raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
+        forces.measure(force_conv, written, osim, builder)
+        warnings = [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
+        report = ConversionReport(
+            model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
+            seconds=time.perf_counter() - t0,
+            counts={"bodies": len(skel.bodies), "joints": len(skel.joints), "coordinates": len(skel.coordinates),
+                    "couplers": len(skel.couplers), "markers": len(skel.markers),
+                    "mujoco joints": model.njnt, "mujoco equalities": model.neq, "meshes": model.nmesh,
+                    "geoms": model.ngeom, "other forces": force_conv.converted},
+            joints=result.joints, approximations=result.approximations,
+            skipped=[s for s in skel.skipped if (s.element, s.name) not in force_conv.handled]
+            + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings,
+            path_fits=[f.to_dict() for f in fits], path_fit_seconds=fit_seconds, path_forces_mode=options.path_forces,
+            path_forces=[asdict(r) for r in tendons.path_forces],
+            length_vias=[asdict(v) for v in vias])
+        report.write(stage, stem)
+        _publish(stage, out_dir, stem)
+    return Conversion(out_dir / f"{stem}.xml", report)
+
+
+def _fit_mechanics(result, osim: Path) -> list[Skipped]:
+    """Fit every muscle actuator to OpenSim's muscle forces; record each fit's error."""
+    fits = fit_muscles(osim)
+    for act in result.spec.actuators:
+        p = fits.get(act.name)
+        if p is None:
+            continue
+        p.apply_to(act)
+        result.approximations.append(Approximation(
+            p.type, p.name, "MuJoCo muscle force-length fitted to OpenSim's tendon force (rigid tendon)",
+            float(max(p.err_active_max_pct, p.err_passive_max_pct)), "% of max isometric force",
+            f"active rms {p.err_active_rms_pct:.2f} %, passive rms {p.err_passive_rms_pct:.2f} %"))
+    return list(fits.skipped)
+
+
+def _set_length_ranges(spec: mujoco.MjSpec, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
+    """Give every tendon actuator without one the length range of its tendon over the coordinates' ranges."""
+    todo = [a for a in spec.actuators if a.trntype == mujoco.mjtTrn.mjTRN_TENDON and not np.any(a.lengthrange)]
+    if not todo:
+        return
+    coords = {}
+    for name, (_, ax) in builder.coord_joint.items():
+        if builder.drivers[name].base == name:
+            coords[name] = builder.fit_range(name, ax.kind)
+    ranges = tendon_length_ranges(model, coords)
+    for act in todo:  # actuators whose length range no muscle fit gave
+        lo, hi = ranges[model.tendon(act.target).id]
+        if hi - lo < 1e-4 * max(lo, 1e-3):  # spans no free coordinate (e.g. only locked ones)
+            builder.result.notes.append(f"{act.name}: tendon length constant at {lo:.6g} m over the free "
+                                        f"coordinates; length range set to ±1% around it")
+            lo, hi = 0.99 * lo, 1.01 * hi
+        act.lengthrange = [lo, hi]
+
+
+def _relative_meshdir(xml: str) -> str:
+    """MJCF text with ``compiler/@meshdir`` made relative to the file (meshes sit beside it)."""
+    root = etree.fromstring(xml.encode())
+    for comp in root.iter("compiler"):
+        if comp.get("meshdir") is not None:
+            comp.set("meshdir", ".")
+    return etree.tostring(root, encoding="unicode", pretty_print=True)
+
+
+def _default_pose(xml: str, qpos0) -> str:
+    """MJCF text whose ``default-pose`` keyframe holds ``qpos0`` in full precision."""
+    root = etree.fromstring(xml.encode())
+    for key in root.iter("key"):
+        if key.get("name") == "default-pose":
+            key.set("qpos", " ".join(f"{float(v):.17g}" for v in qpos0))
+    return etree.tostring(root, encoding="unicode", pretty_print=True)
+
+
+def _publish(stage: Path, out_dir: Path, stem: str) -> None:
+    """Move the staged files into ``out_dir``; the MJCF goes last so it appears only when complete."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if (stage / MESH_FOLDER).exists():
+        (out_dir / MESH_FOLDER).mkdir(exist_ok=True)
+        for f in (stage / MESH_FOLDER).iterdir():
+            shutil.move(str(f), out_dir / MESH_FOLDER / f.name)
+    for suffix in (".report.json", ".report.txt", ".xml"):
+        if (stage / f"{stem}{suffix}").exists():
+            shutil.move(str(stage / f"{stem}{suffix}"), out_dir / f"{stem}{suffix}")
+
+
+#: The sources whose change changes a conversion (with o2m's version): what :func:`conversion_key` hashes.
+_CONVERTER_SOURCES = ("convert", "osim", "mj", "transforms.py", "errors.py")
+
+
+def conversion_key(osim: str | Path, options: ConvertOptions) -> str:
+    """A hash of what decides a conversion's output: the ``.osim`` file's bytes, ``options``, o2m's
+    version and the converter's source files (sha256, hex)."""
+    import o2m
+
+    h = hashlib.sha256()
+    h.update(Path(osim).read_bytes())
+    h.update(repr(options).encode())
+    h.update(o2m.__version__.encode())
+    root = Path(__file__).resolve().parents[1]
+    for name in _CONVERTER_SOURCES:
+        for f in sorted((root / name).rglob("*.py")) if (root / name).is_dir() else [root / name]:
+            h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def convert_once(osim: str | Path, out_dir: str | Path, options: ConvertOptions = ConvertOptions(),  # noqa: B008
+                 *, geometry_dirs: Sequence[str | Path] = ()) -> Path:
+    """:func:`convert`, unless ``out_dir`` already holds this conversion (same :func:`conversion_key`,
+    kept in ``<stem>.key`` beside the MJCF); returns the MJCF path either way."""
+    osim, out_dir = Path(osim), Path(out_dir)
+    xml, key_file = out_dir / f"{osim.stem}.xml", out_dir / f"{osim.stem}.key"
+    key = conversion_key(osim, options)
+    if xml.exists() and key_file.exists() and key_file.read_text().strip() == key:
+        return xml
+    xml = convert(osim, out_dir, options, geometry_dirs=geometry_dirs).xml
+    key_file.write_text(key + "\n")
+    return xml

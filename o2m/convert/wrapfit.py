@@ -1,0 +1,523 @@
+"""Fitting each tendon's wrap geoms and side sites to OpenSim's lengths and moment arms.
+
+Where a converted path only approximates OpenSim's (an ellipsoid wrapped as a sphere or a
+cylinder, a wrap placed on one path segment, MuJoCo's side-site rule for which way
+round a geom the tendon goes), :func:`fit_paths` adjusts, per tendon, the position and radius of
+each of its wrap geoms and the position of each side site so that MuJoCo's tendon length and
+moment arms match OpenSim's over sampled poses:
+
+* Poses: every independent coordinate drawn uniformly in its range (seeded); OpenSim assembles
+  each pose and MuJoCo takes its independent values, equality-driven joints resolved.
+* Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
+  OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
+  them), for every coordinate the path spans. For a tendon whose same-body segments are held
+  (``path_forces="opensim"``, :mod:`o2m.tendons`) the targets are what that tendon stands for:
+  the length with those segments replaced by their held length, and its ``-dL/dq`` (OpenSim's
+  ``computeMomentArm``); for one with a length via point (:mod:`o2m.lengthvia`), its designed
+  length and that length's ``-dL/dq``.
+* Objective: mean squared length error plus mean squared moment-arm error, both in mm².
+  MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a reduced copy of the model
+  (that tendon only, no meshes) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are changed in
+  place; moment arms from the tendon Jacobian projected on each coordinate's direction.
+* Start: the converted geoms, except that a geom standing for a WrapEllipsoid also gets the
+  sphere (or, for a cylinder, the circle about its axis) fitted by least squares to the points
+  where OpenSim's path touches the ellipsoid (its wrap arcs over the fitting poses); CMA-ES
+  starts from whichever of the two fits better. (A mean-radius sphere misses the part of the
+  ellipsoid the path actually runs over: Arm26's BIClong over BIClonghh is 1.6 mm too long at
+  the default pose with it, 0.07 mm with the contact sphere.)
+* Optimiser: CMA-ES (:mod:`cma`), seeded per tendon, parallel over tendons in a process pool.
+* A fit is accepted only when it lowers the objective both on the fitting poses and on separate
+  check poses, and raises the worst length error on neither; otherwise the tendon keeps its
+  start. Each tendon's errors before and after go
+  into the conversion report.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+from o2m.osim import runtime
+from o2m.parallel import map_with_progress
+from o2m.transforms import OSIM_TO_MJ
+
+#: Poses to fit on and to check on, and the CMA-ES evaluation budget per tendon (full, quick).
+FULL = {"poses": 120, "check": 60, "evals": 1500}
+QUICK = {"poses": 40, "check": 30, "evals": 400}
+#: Central-difference step of OpenSim's moment arms (radians or metres).
+OS_FD_STEP = 1e-5
+#: OpenSim moment arms by steps of 1 and 10 OS_FD_STEP that differ by more than this (m) are left out.
+MA_CONSISTENCY = 1e-3
+#: Length scale (m) of the position parameters of a geom: at least this, else its radius.
+MIN_SCALE = 0.004
+#: A side site is kept at least this many radii from its geom's centre (axis, for a cylinder).
+MIN_SIDE_DISTANCE = 1.25
+
+
+@dataclass
+class PathFit:
+    """The fit of one tendon: errors before and after (``len_rms_mm``, ``len_max_mm``,
+    ``len_max_pct``, ``ma_rms_mm``, ``objective``) on the fitting poses and on the check poses,
+    whether the result was accepted, and the fitted values (MuJoCo body frames, metres)."""
+
+    tendon: str
+    geoms: list[str]
+    kinds: list[str]
+    coordinates: list[str]
+    n_params: int
+    poses: int
+    before: dict[str, float]
+    after: dict[str, float]
+    check_before: dict[str, float]
+    check_after: dict[str, float]
+    accepted: bool
+    evaluations: int
+    seconds: float
+    values: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class _Task:
+    tendon: str
+    xml: str
+    geoms: list[str]
+    sites: list[str]
+    kinds: list[str]
+    qpos: np.ndarray  # (N, nq) fitting poses, then check poses
+    dv: np.ndarray  # (N, nc, nv) coordinate directions in dof space
+    length: np.ndarray  # (N,) OpenSim
+    arm: np.ndarray  # (N, nc) OpenSim -dL/dq
+    n_fit: int
+    coordinates: list[str]
+    seed: int
+    evals: int
+    #: per geom: OpenSim's wrap-arc points on the object it stands for (MuJoCo body frame, (n, 3)), or None
+    contacts: list[np.ndarray | None] = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------------------------
+# MuJoCo side (runs in the workers)
+# --------------------------------------------------------------------------------------------
+
+
+def reduced_xml(xml: str, tendon: str | None = None) -> str:
+    """MJCF text of ``xml`` without meshes, actuators, sensors or keyframes, and with only
+    ``tendon`` (every tendon when None): what tendon lengths depend on, cheap to evaluate."""
+    root = etree.fromstring(xml.encode())
+    for asset in root.iter("asset"):
+        for el in list(asset):
+            if el.tag in ("mesh", "hfield", "skin"):
+                asset.remove(el)
+    for g in list(root.iter("geom")):
+        if g.get("mesh") is not None or g.get("type") in ("mesh", "hfield", "sdf"):
+            g.getparent().remove(g)
+    for tag in ("actuator", "sensor", "keyframe", "contact", "custom"):
+        for el in list(root.iter(tag)):
+            el.getparent().remove(el)
+    for ten in list(root.iter("tendon")):
+        for el in list(ten):
+            if tendon is not None and el.get("name") != tendon:
+                ten.remove(el)
+    for eq in list(root.iter("equality")):
+        for el in list(eq):
+            if el.tag == "tendon":
+                eq.remove(el)
+    return etree.tostring(root, encoding="unicode")
+
+
+class _Evaluator:
+    """A reduced MuJoCo model of one tendon and the poses it is evaluated in."""
+
+    def __init__(self, task: _Task):
+        self.t = task
+        self.m = mujoco.MjModel.from_xml_string(task.xml)
+        self.d = mujoco.MjData(self.m)
+        self.gid = [self.m.geom(g).id for g in task.geoms]
+        self.sid = [self.m.site(s).id for s in task.sites]
+        self.pos0 = self.m.geom_pos[self.gid].copy()
+        self.rad0 = self.m.geom_size[self.gid, 0].copy()
+        self.side0 = self.m.site_pos[self.sid].copy()
+        self.cyl = [int(self.m.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_CYLINDER) for g in self.gid]
+        self.scale = np.maximum(self.rad0, MIN_SCALE)
+        self.n_params = 7 * len(self.gid)
+        self.evaluations = 0
+
+    def values(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Geom positions, radii and side-site positions (body frames) of parameters ``theta``."""
+        th = np.asarray(theta, dtype=float).reshape(len(self.gid), 7)
+        pos = self.pos0 + self.scale[:, None] * th[:, 0:3]
+        rad = self.rad0 * np.exp(np.clip(th[:, 3], -3.0, 3.0))
+        side = self.side0 + self.scale[:, None] * th[:, 4:7]
+        for k, g in enumerate(self.gid):  # keep each side site outside its geom (its axis, for a cylinder)
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, self.m.geom_quat[g])
+            rot = rot.reshape(3, 3)
+            rel = rot.T @ (side[k] - pos[k])
+            mask = np.array([1.0, 1.0, 0.0]) if self.cyl[k] else np.ones(3)
+            radial, axial = rel * mask, rel * (1.0 - mask)
+            dist, need = float(np.linalg.norm(radial)), MIN_SIDE_DISTANCE * rad[k]
+            if dist < need:
+                radial = radial / dist * need if dist > 1e-12 else np.array([need, 0.0, 0.0])
+                side[k] = pos[k] + rot @ (radial + axial)
+        return pos, rad, side
+
+    def contact_start(self) -> np.ndarray | None:
+        """Parameters putting each geom with contact points on the sphere (cylinder: the circle
+        about its axis) fitted to them by least squares, its side site kept in its direction from
+        the centre at its distance in radii; None when no geom has enough points."""
+        th = np.zeros((len(self.gid), 7))
+        changed = False
+        for k, pts in enumerate(self.t.contacts or []):
+            if pts is None or len(pts) < 8:
+                continue
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, self.m.geom_quat[self.gid[k]])
+            rot = rot.reshape(3, 3)
+            local = (np.asarray(pts) - self.pos0[k]) @ rot  # in the geom frame
+            dims = 2 if self.cyl[k] else 3
+            fit = _least_squares_sphere(local[:, :dims])
+            if fit is None:
+                continue
+            centre, radius = fit
+            c_local = np.zeros(3)
+            c_local[:dims] = centre
+            pos = self.pos0[k] + rot @ c_local
+            rel = self.side0[k] - self.pos0[k]
+            side = pos + rel * (radius / self.rad0[k])
+            th[k, 0:3] = (pos - self.pos0[k]) / self.scale[k]
+            th[k, 3] = np.log(radius / self.rad0[k])
+            th[k, 4:7] = (side - self.side0[k]) / self.scale[k]
+            changed = True
+        return np.clip(th.ravel(), -4.0, 4.0) if changed else None
+
+    def apply(self, theta: np.ndarray) -> None:
+        pos, rad, side = self.values(theta)
+        self.m.geom_pos[self.gid] = pos
+        self.m.geom_size[self.gid, 0] = rad
+        self.m.site_pos[self.sid] = side
+
+    def errors(self, theta: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray]:
+        """Length errors (n,) and moment-arm errors (n, nc), metres, MuJoCo minus OpenSim."""
+        self.apply(theta)
+        m, d, t = self.m, self.d, self.t
+        qs = t.qpos[rows]
+        n = len(qs)
+        length = np.empty(n)
+        arm = np.empty((n, t.dv.shape[1]))
+        dv = t.dv[rows]
+        for k in range(n):
+            d.qpos[:] = qs[k]
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_tendon(m, d)
+            length[k] = d.ten_length[0]
+            jac = np.zeros(m.nv)
+            adr, nnz = int(m.ten_J_rowadr[0]), int(m.ten_J_rownnz[0])
+            jac[m.ten_J_colind[adr:adr + nnz]] = d.ten_J[adr:adr + nnz]
+            arm[k] = -(dv[k] @ jac)
+        self.evaluations += 1
+        return length - t.length[rows], arm - t.arm[rows]
+
+    def objective(self, theta: np.ndarray, rows: slice) -> float:
+        le, me = self.errors(theta, rows)
+        return _objective(le, me)
+
+    def summary(self, theta: np.ndarray, rows: slice) -> dict[str, float]:
+        le, me = self.errors(theta, rows)
+        L = self.t.length[rows]
+        ok = np.isfinite(me)
+        return {"len_rms_mm": float(np.sqrt(np.mean(le**2)) * 1e3), "len_max_mm": float(np.max(np.abs(le)) * 1e3),
+                "len_max_pct": float(np.max(np.abs(le) / np.maximum(L, 1e-9)) * 100),
+                "ma_rms_mm": float(np.sqrt(np.mean(me[ok] ** 2)) * 1e3) if ok.any() else 0.0,
+                "objective": _objective(le, me)}
+
+
+def _least_squares_sphere(pts: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Centre and radius of the sphere (circle, for 2-D points) nearest ``pts`` in the algebraic
+    least-squares sense, or None when the points do not determine one."""
+    a = np.c_[2.0 * pts, np.ones(len(pts))]
+    b = np.sum(pts**2, axis=1)
+    sol, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
+    if rank < a.shape[1]:
+        return None
+    centre = sol[:-1]
+    r2 = float(sol[-1] + centre @ centre)
+    return (centre, float(np.sqrt(r2))) if r2 > 0 else None
+
+
+def _objective(le: np.ndarray, me: np.ndarray) -> float:
+    """Mean squared length error plus mean squared moment-arm error (mm²); NaN targets left out."""
+    ok = np.isfinite(me)
+    return float(np.mean(le**2) * 1e6 + (np.mean(me[ok] ** 2) * 1e6 if ok.any() else 0.0))
+
+
+def _fit_one(task: _Task) -> PathFit:
+    import cma
+
+    t0 = time.perf_counter()
+    ev = _Evaluator(task)
+    fit, check = slice(0, task.n_fit), slice(task.n_fit, len(task.qpos))
+    x0 = np.zeros(ev.n_params)
+    f0 = ev.objective(x0, fit)
+    best_x, best_f = x0, f0
+    start = ev.contact_start()
+    if start is not None:
+        f_start = ev.objective(start, fit)
+        if f_start < best_f:
+            best_x, best_f = start, f_start
+    if ev.n_params and task.evals > 0:
+        es = cma.CMAEvolutionStrategy(best_x, 0.3, {"seed": int(task.seed) + 1, "maxfevals": int(task.evals),
+                                                "verbose": -9, "bounds": [-4.0, 4.0], "tolfun": 1e-9})
+        while not es.stop():
+            xs = es.ask()
+            fs = [ev.objective(x, fit) for x in xs]
+            es.tell(xs, fs)
+            k = int(np.argmin(fs))
+            if fs[k] < best_f:
+                best_x, best_f = np.array(xs[k]), float(fs[k])
+    before, after = ev.summary(x0, fit), ev.summary(best_x, fit)
+    cb, ca = ev.summary(x0, check), ev.summary(best_x, check)
+    # better overall, on both pose sets, without a larger worst length error on either
+    accepted = bool(after["objective"] < before["objective"] and ca["objective"] <= cb["objective"]
+                    and after["len_max_pct"] <= before["len_max_pct"] and ca["len_max_pct"] <= cb["len_max_pct"])
+    if not accepted:
+        best_x, after, ca = x0, before, cb
+    pos, rad, side = ev.values(best_x)
+    values = {g: {"pos": pos[k].tolist(), "radius": [float(rad[k])]} for k, g in enumerate(task.geoms)}
+    values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites)})
+    return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
+                   before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values)
+
+
+# --------------------------------------------------------------------------------------------
+# OpenSim side and the driver
+# --------------------------------------------------------------------------------------------
+
+
+def _held_correction(pair: Any, state: Any, held: dict[str, dict], col: dict[str, int]) -> np.ndarray:
+    """(n paths,) what a held tendon's length differs from OpenSim's getLength in ``state``: its
+    held length minus the current length of its held same-body segments (0 for other paths)."""
+    out = np.zeros(len(col))
+    for name, h in held.items():
+        if name not in col:
+            continue
+        pps = pair.force(name).getGeometryPath().getPathPointSet()
+        now = sum(float(np.linalg.norm(pps.get(a).getLocationInGround(state).to_numpy()
+                                       - pps.get(b).getLocationInGround(state).to_numpy())) for a, b in h["pairs"])
+        out[col[name]] = h["length"] - now
+    return out
+
+
+def _wrap_contacts(pair: Any, state: Any, tendon: str, wraps: set[str]) -> dict[str, list[np.ndarray]]:
+    """OpenSim's wrap-arc points (in the wrap object's body frame) of ``tendon`` on each of ``wraps``."""
+    opensim = runtime.opensim()
+    out: dict[str, list[np.ndarray]] = {}
+    cp = pair.force(tendon).getGeometryPath().getCurrentPath(state)
+    for i in range(cp.getSize()):
+        pw = opensim.PathWrapPoint.safeDownCast(cp.get(i))
+        if pw is None or pw.getWrapObject().getName() not in wraps:
+            continue
+        arc = pw.getWrapPath(state)
+        out.setdefault(pw.getWrapObject().getName(), []).extend(arc.get(k).to_numpy() for k in range(arc.getSize()))
+    return out
+
+
+def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: dict[str, int]) -> np.ndarray:
+    """(n paths,) what a tendon with length via points differs from OpenSim's getLength in
+    ``state`` (:func:`o2m.lengthvia.designed_correction`; 0 for other paths)."""
+    from o2m.convert.lengthvia import designed_correction
+
+    out = np.zeros(len(col))
+    for name, vias in designed.items():
+        if name in col:
+            out[col[name]] = sum(designed_correction(pair.os_model, state, v) for v in vias)
+    return out
+
+
+def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
+             held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
+             n_contact: int = 0, designed: dict[str, list] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
+    """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
+    (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
+    ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
+    wrap objects named in ``contacts`` (tendon -> wrap names)."""
+    from o2m.mj.posing import joint_qpos_address, resolve_joint_equalities
+    from o2m.mj.tendons import coordinate_direction, qpos_to_dof
+    from o2m.osim.pair import ModelPair
+    from o2m.osim.runtime import sample_bounds
+    from o2m.osim.spikes import SPIKE_TOL, opensim_spikes
+
+    pair = ModelPair(osim_path, xml_path)
+    m = pair.mj_model
+    names = [n for n, _, _ in pair.matched]
+    col = {n: i for i, n in enumerate(names)}
+    spans = pair.spanned()
+    wanted = [t for t in tendons if t in col]
+    held = {t: h for t, h in (held or {}).items() if t in wanted}
+    designed = {t: v for t, v in (designed or {}).items() if t in wanted}
+
+    def corrections(state: Any) -> np.ndarray:
+        """What each target differs from OpenSim's getLength in ``state`` (held, designed)."""
+        return _held_correction(pair, state, held, col) + _designed_correction(pair, state, designed, col)
+    coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
+                    key=pair.indep_names.index)
+    rng = np.random.default_rng(seed)
+    bounds = np.array([sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
+    qpos, lengths, arms, valid = [], [], [], []
+    touched: list[dict[str, dict[str, list[np.ndarray]]]] = []  # per pose: tendon -> wrap -> points
+    contacts = {t: w for t, w in (contacts or {}).items() if t in wanted and w}
+    wanted_idx = np.array([col[t] for t in wanted], dtype=int)
+    attempts = 0
+    while len(qpos) < n_poses and attempts < 4 * n_poses:
+        attempts += 1
+        values = dict(zip(pair.indep_names, rng.uniform(bounds[:, 0], bounds[:, 1]), strict=True))
+        try:
+            state = pair.os_state(values)
+            values = pair.os_indep_values(state)
+            raw = pair.os_lengths(state)
+            base = raw + corrections(state)
+            arm = np.zeros((len(names), len(coords)))
+            asm = bool(pair.dependent)
+            for j, c in enumerate(coords):
+                ma = []
+                for h in (OS_FD_STEP, 10 * OS_FD_STEP):
+                    s_up = pair.os_state({**values, c: values[c] + h}, assemble=asm)
+                    up = pair.os_lengths(s_up) + corrections(s_up)
+                    s_dn = pair.os_state({**values, c: values[c] - h}, assemble=asm)
+                    dn = pair.os_lengths(s_dn) + corrections(s_dn)
+                    ma.append(-(up - dn) / (2 * h))
+                # a length discontinuity within the step (a wrap flipping) is no moment arm
+                arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
+        except Exception:  # assembly failure: draw another pose
+            continue
+        # OpenSim's own length spiking here (a wrap going the wrong way round) is no target
+        ok = np.ones(len(names), dtype=bool)
+        err = np.abs(pair.mj_lengths(values)[pair.tendon_ids] - base)
+        suspects = wanted_idx[err[wanted_idx] > SPIKE_TOL]
+        for i in opensim_spikes(pair, values, suspects, raw):
+            ok[i] = False
+        valid.append(ok)
+        touched.append({t: _wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
+                       if len(touched) < n_contact else {})
+        q = np.array(m.qpos0, dtype=float)
+        for n, v in values.items():
+            q[joint_qpos_address(m, n)] = v
+        resolve_joint_equalities(m, q, pair.plan)
+        qpos.append(q)
+        lengths.append(base)
+        arms.append(arm)
+    qpos_a, len_a, arm_a, ok_a = np.array(qpos), np.array(lengths), np.array(arms), np.array(valid)
+    dv_all = np.array([[qpos_to_dof(m, coordinate_direction(m, q, joint_qpos_address(m, c), pair.plan))
+                        for c in coords] for q in qpos_a]).reshape(len(qpos_a), len(coords), m.nv)
+    out = {}
+    for t in wanted:
+        cs = [j for j, c in enumerate(coords) if c in spans.get(t, set())]
+        rows = ok_a[:, col[t]]
+        out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": len_a[rows, col[t]],
+                  "arm": arm_a[rows, col[t]][:, cs], "coordinates": [coords[j] for j in cs],
+                  "spikes": int(np.sum(~rows)), "contacts": {}}
+        for k, pose in enumerate(touched):
+            if ok_a[k, col[t]]:
+                for w, pts in pose.get(t, {}).items():
+                    out[t]["contacts"].setdefault(w, []).extend(pts)
+    return m, out
+
+
+def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any], *, seed: int = 0,
+              quick: bool = False, workers: int | None = None, progress: bool = False,
+              n_poses: int | None = None, evals: int | None = None,
+              held: dict[str, dict] | None = None, designed: dict[str, list] | None = None) -> list[PathFit]:
+    """Fit the wrap geoms and side sites of every tendon in ``path_geoms`` (each a
+    :class:`o2m.tendons.PathGeom`) of the model ``xml`` (MJCF text) to OpenSim ``osim_path``.
+
+    ``quick`` uses :data:`QUICK` sizes instead of :data:`FULL`;
+    ``n_poses``/``evals`` override them. ``workers`` processes (default: every core) fit the
+    tendons in parallel. ``held`` (:attr:`o2m.tendons.TendonBuilder.held`) names the tendons whose
+    same-body segments are held, and how; ``designed`` (tendon -> its
+    :class:`o2m.lengthvia.LengthVia` records) the tendons whose lengths are designed there (their
+    targets are those lengths). Returns one :class:`PathFit` per tendon, in
+    ``path_geoms`` order.
+    """
+
+    sizes = QUICK if quick else FULL
+    n_fit = int(n_poses or sizes["poses"])
+    n_check = max(10, n_fit // 2) if n_poses else sizes["check"]
+    budget = int(sizes["evals"] if evals is None else evals)
+    by_tendon: dict[str, list[Any]] = {}
+    for g in path_geoms:
+        by_tendon.setdefault(g.tendon, []).append(g)
+    if not by_tendon:
+        return []
+    with tempfile.TemporaryDirectory(prefix="o2m-wrapfit-") as tmp:
+        path = os.path.join(tmp, "model.xml")
+        with open(path, "w") as fh:
+            fh.write(reduced_xml(xml))
+        ellipsoids = {t: {g.source for g in gs if g.kind == "WrapEllipsoid"} for t, gs in by_tendon.items()}
+        _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
+                              ellipsoids, n_fit, designed)
+    tasks = []
+    for k, (tendon, geoms) in enumerate(by_tendon.items()):
+        tg = targets.get(tendon)
+        if tg is None or len(tg["qpos"]) < 2:
+            continue
+        contacts = []
+        for g in geoms:
+            pts = tg["contacts"].get(g.source) if g.kind == "WrapEllipsoid" else None
+            if pts:
+                pts = np.array(pts)
+                pts = pts @ OSIM_TO_MJ.T if g.body == "ground" else pts  # MuJoCo's ground is Z-up
+            contacts.append(pts if pts is not None and len(pts) else None)
+        tasks.append(_Task(tendon, reduced_xml(xml, tendon), [g.geom for g in geoms], [g.sidesite for g in geoms],
+                           [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
+                           min(n_fit, len(tg["qpos"]) - 1), tg["coordinates"], seed * 1000 + k, budget, contacts))
+    fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
+    results = {task.tendon: res for task, res in zip(tasks, fitted, strict=True)}
+    return [results[t] for t in by_tendon if t in results]
+
+
+def apply_fits(spec: mujoco.MjSpec, fits: Sequence[PathFit], site_exact: dict, geom_exact: dict) -> None:
+    """Write accepted fits into ``spec`` and into the exact-value tables the MJCF writer uses."""
+    for f in fits:
+        if not f.accepted:
+            continue
+        for name, vals in f.values.items():
+            if name in f.geoms:
+                g = spec.geom(name)
+                pos, radius = np.array(vals["pos"]), float(vals["radius"][0])
+                g.pos = pos
+                size = np.array(g.size, dtype=float)
+                size[0] = radius
+                g.size = size
+                ex = geom_exact.setdefault(("geom", name), {})
+                ex["pos"] = pos
+                ex["size"] = np.concatenate([[radius], np.asarray(ex.get("size", [radius]))[1:]])
+            else:
+                s = spec.site(name)
+                s.pos = np.array(vals["pos"])
+                site_exact[("site", name)] = {"pos": np.array(vals["pos"])}
+
+
+def format_fits(fits: Sequence[PathFit]) -> list[str]:
+    """Report lines, one per fitted tendon."""
+    lines = []
+    for f in fits:
+        b, a = f.before, f.after
+        lines.append(f"  {f.tendon:16s} {'+'.join(sorted(set(f.kinds))):34s} length rms {b['len_rms_mm']:.3g} -> "
+                     f"{a['len_rms_mm']:.3g} mm (max {b['len_max_pct']:.3g} -> {a['len_max_pct']:.3g} %), moment arm "
+                     f"rms {b['ma_rms_mm']:.3g} -> {a['ma_rms_mm']:.3g} mm"
+                     + ("" if f.accepted else " (not better: start kept)") + f", {f.seconds:.1f} s")
+    return lines
+
+
+__all__ = ["FULL", "QUICK", "PathFit", "apply_fits", "fit_paths", "format_fits", "reduced_xml"]

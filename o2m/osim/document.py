@@ -1,0 +1,206 @@
+"""Reading .osim files: XML parsing, 3.x upgrade, component paths and source lines.
+
+o2m reads OpenSim 4.x documents with lxml. A 3.x document (``Version`` below 40000, such as
+MoBL-ARMS) is first upgraded by OpenSim itself (``opensim.Model(path).printToXML``), so that
+one reader serves both formats; errors in an upgraded document still point at the line of
+the user's original file where the element (matched by tag and name) can be found there.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lxml import etree
+
+from o2m.errors import ModelFileError, UnsupportedElementError
+from o2m.osim import runtime
+
+#: First document version of the OpenSim 4.x format.
+VERSION_4 = 40000
+
+#: Default component names of the model's sets, used when a set has no name attribute.
+_SET_NAMES = {
+    "BodySet": "bodyset",
+    "JointSet": "jointset",
+    "ConstraintSet": "constraintset",
+    "ForceSet": "forceset",
+    "MarkerSet": "markerset",
+    "ContactGeometrySet": "contactgeometryset",
+    "ControllerSet": "controllerset",
+    "ProbeSet": "probeset",
+    "ComponentSet": "componentset",
+    "WrapObjectSet": "wrapobjectset",
+}
+
+
+def _is_component(el: etree._Element) -> bool:
+    """True for XML elements that are OpenSim objects with a component name."""
+    if not isinstance(el.tag, str) or not el.tag[:1].isupper():
+        return False
+    return el.get("name") is not None or el.tag in _SET_NAMES
+
+
+def _component_name(el: etree._Element) -> str:
+    return el.get("name") or _SET_NAMES.get(el.tag, el.tag.lower())
+
+
+@dataclass
+class OsimDocument:
+    """An .osim document ready to read: the 4.x ``<Model>`` element and where it came from.
+
+    ``path`` is the file the user gave. ``model`` is the ``<Model>`` element of a 4.x document
+    (the upgraded copy for a 3.x file). ``version`` is the original document version.
+    """
+
+    path: Path
+    model: etree._Element
+    version: int
+    original: etree._ElementTree | None = None
+    _paths: dict[int, str] = field(default_factory=dict, repr=False)
+    _by_path: dict[str, etree._Element] = field(default_factory=dict, repr=False)
+
+    @property
+    def upgraded(self) -> bool:
+        return self.version < VERSION_4
+
+    # -- locating elements -------------------------------------------------------------
+    def line_of(self, el: etree._Element) -> int | None:
+        """Line of ``el`` in the user's file (for an upgraded 3.x document, the line of the
+        element with the same tag and name in the original, when there is one)."""
+        if not self.upgraded:
+            return el.sourceline
+        name = el.get("name")
+        if self.original is None or name is None:
+            return None
+        for cand in self.original.iter(el.tag):
+            if cand.get("name") == name:
+                return cand.sourceline
+        return None
+
+    def error(self, el: etree._Element, message: str) -> UnsupportedElementError:
+        """An error about element ``el`` that names its tag, name, file and line."""
+        return UnsupportedElementError(
+            message, element=el.tag, name=el.get("name"), line=self.line_of(el), path=str(self.path)
+        )
+
+    # -- component paths ---------------------------------------------------------------
+    def _index(self) -> None:
+        if self._by_path:
+            return
+
+        def walk(el: etree._Element, path: str) -> None:
+            for child in el:
+                if not isinstance(child.tag, str):
+                    continue
+                if _is_component(child):
+                    cpath = f"{path.rstrip('/')}/{_component_name(child)}"
+                    self._paths[id(child)] = cpath
+                    self._by_path.setdefault(cpath, child)
+                    walk(child, cpath)
+                else:
+                    walk(child, path)
+
+        self._paths[id(self.model)] = "/"
+        self._by_path["/"] = self.model
+        walk(self.model, "/")
+
+    def path_of(self, el: etree._Element) -> str:
+        """Absolute OpenSim component path of ``el`` (e.g. ``/jointset/elbow/r_humerus_offset``)."""
+        self._index()
+        return self._paths[id(el)]
+
+    def owner_of(self, el: etree._Element) -> etree._Element:
+        """Nearest enclosing component of ``el`` (for a socket element: the socket's owner)."""
+        self._index()
+        parent = el.getparent()
+        while parent is not None and id(parent) not in self._paths:
+            parent = parent.getparent()
+        if parent is None:
+            return self.model
+        return parent
+
+    def resolve(self, socket: etree._Element) -> etree._Element:
+        """The component a socket element (e.g. ``<socket_parent_frame>``) points at.
+
+        Paths are resolved as OpenSim does: absolute from the model, or relative to the
+        component that owns the socket; a bare name that is not found that way is looked up
+        among all components and must be unique.
+        """
+        self._index()
+        target = (socket.text or "").strip()
+        owner = self.owner_of(socket)
+        if not target:
+            raise self.error(owner, f"has an empty <{socket.tag}>")
+        base = "/" if target.startswith("/") else self._paths[id(owner)]
+        parts = [p for p in base.split("/") if p]
+        for seg in target.split("/"):
+            if seg in ("", "."):
+                continue
+            if seg == "..":
+                if parts:
+                    parts.pop()
+                continue
+            parts.append(seg)
+        found = self._by_path.get("/" + "/".join(parts))
+        if found is not None:
+            return found
+        name = target.rstrip("/").split("/")[-1]
+        matches = [el for p, el in self._by_path.items() if p.rsplit("/", 1)[-1] == name]
+        if len(matches) == 1:
+            return matches[0]
+        why = "no component has that name" if not matches else f"{len(matches)} components share that name"
+        raise self.error(owner, f"<{socket.tag}> refers to '{target}', which cannot be resolved: {why}")
+
+
+def _parse_xml(path: Path) -> etree._ElementTree:
+    if not path.exists():
+        raise ModelFileError(f"{path}: no such file")
+    if path.is_dir():
+        raise ModelFileError(f"{path}: is a folder, expected an .osim file")
+    try:
+        parser = etree.XMLParser(remove_blank_text=False, huge_tree=True)
+        return etree.parse(str(path), parser)
+    except etree.XMLSyntaxError as exc:
+        line = exc.lineno if exc.lineno else "?"
+        raise ModelFileError(f"{path}:{line}: not well-formed XML: {exc.msg}") from None
+    except OSError as exc:
+        raise ModelFileError(f"{path}: cannot be read: {exc}") from None
+
+
+def _upgrade_with_opensim(path: Path) -> etree._ElementTree:
+    """Let OpenSim read a 3.x document and print it in the 4.x format."""
+    opensim = runtime.opensim()
+    try:
+        model = opensim.Model(str(path))
+    except Exception as exc:  # OpenSim raises a generic RuntimeError
+        raise ModelFileError(f"{path}: OpenSim could not read this 3.x document: {exc}") from None
+    with tempfile.TemporaryDirectory(prefix="o2m-upgrade-") as tmp:
+        out = Path(tmp) / path.name
+        model.printToXML(str(out))
+        return _parse_xml(out)
+
+
+def load_document(path: str | Path) -> OsimDocument:
+    """Read an .osim file (4.x, or 3.x upgraded through OpenSim) into an :class:`OsimDocument`."""
+    path = Path(path)
+    tree = _parse_xml(path)
+    root = tree.getroot()
+    if root.tag != "OpenSimDocument":
+        raise ModelFileError(
+            f"{path}:{root.sourceline}: root element is <{root.tag}>, expected <OpenSimDocument>"
+        )
+    try:
+        version = int(root.get("Version", "0"))
+    except ValueError:
+        raise ModelFileError(f"{path}: Version attribute '{root.get('Version')}' is not a number") from None
+    original = None
+    if version < VERSION_4:
+        original = tree
+        tree = _upgrade_with_opensim(path)
+        root = tree.getroot()
+    model = root.find("Model")
+    if model is None:
+        raise ModelFileError(f"{path}: <OpenSimDocument> holds no <Model>")
+    return OsimDocument(path=path, model=model, version=version, original=original)

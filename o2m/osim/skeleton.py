@@ -1,0 +1,432 @@
+"""The multibody part of an OpenSim model, read from a 4.x document into plain dataclasses.
+
+Everything a MuJoCo model needs besides muscles: bodies (mass, centre of mass, inertia),
+frames, joints reduced to one canonical form, coordinates, coupler constraints, markers and
+attached geometry. Units are OpenSim's: metres, kilograms, radians, in OpenSim's Y-up frames.
+
+Canonical joint form. Every OpenSim joint type is written as OpenSim's CustomJoint writes it:
+
+    X_PB(q) = X_PF · Tr(Σ_k t_k(q) e_k) · R(a1, r1(q)) · R(a2, r2(q)) · R(a3, r3(q)) · X_BM⁻¹
+
+with X_PF the parent frame in the parent body, X_BM the child frame in the child body,
+translations t_k along axes e_k of F, and rotations r_i applied about body-fixed axes a_i.
+A PinJoint is one rotation about Z, a SliderJoint one translation along X, and so on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+
+import numpy as np
+from lxml import etree
+
+from o2m.errors import UnsupportedElementError
+from o2m.osim import runtime
+from o2m.osim.document import OsimDocument
+from o2m.osim.functions import Function, parse_function
+from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
+
+#: Joint types o2m converts, with the canonical axes of their coordinates in order:
+#: (kind, axis) with kind "rotation" or "translation" and the axis in the joint frames.
+_X, _Y, _Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+JOINT_AXES: dict[str, list[tuple[str, tuple[float, float, float]]]] = {
+    "WeldJoint": [],
+    "PinJoint": [("rotation", _Z)],
+    "SliderJoint": [("translation", _X)],
+    "UniversalJoint": [("rotation", _X), ("rotation", _Y)],
+    "GimbalJoint": [("rotation", _X), ("rotation", _Y), ("rotation", _Z)],
+    "BallJoint": [("rotation", _X), ("rotation", _Y), ("rotation", _Z)],
+    "FreeJoint": [("rotation", _X), ("rotation", _Y), ("rotation", _Z),
+                  ("translation", _X), ("translation", _Y), ("translation", _Z)],
+    "PlanarJoint": [("rotation", _Z), ("translation", _X), ("translation", _Y)],
+}
+SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"}
+
+
+@cache
+def opensim_typenames() -> frozenset[str]:
+    """Every object type OpenSim 4.6 registers: a tag outside this set is unknown to OpenSim."""
+    opensim = runtime.opensim()
+    names = opensim.ArrayStr()
+    opensim.OpenSimObject.getRegisteredTypenames(names)
+    return frozenset(names.get(i) for i in range(names.getSize()))
+
+
+def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str) -> np.ndarray:
+    if el is None or not (el.text or "").strip():
+        raise doc.error(el.getparent() if el is not None else doc.model, f"lacks <{what}>")
+    try:
+        vals = np.array([float(v) for v in el.text.split()])
+    except ValueError:
+        raise doc.error(el.getparent(), f"<{what}> holds '{el.text.strip()}', not numbers") from None
+    if n is not None and vals.size != n:
+        raise doc.error(el.getparent(), f"<{what}> has {vals.size} numbers, expected {n}")
+    if not np.all(np.isfinite(vals)):
+        raise doc.error(el.getparent(), f"<{what}> holds a non-finite number")
+    return vals
+
+
+def _bool(el: etree._Element | None, default: bool = False) -> bool:
+    if el is None or el.text is None:
+        return default
+    return el.text.strip().lower() in ("true", "1")
+
+
+def _identity_function() -> Function:
+    el = etree.fromstring("<LinearFunction name=\"function\"><coefficients>1 0</coefficients></LinearFunction>")
+    return parse_function(el)
+
+
+@dataclass
+class Geometry:
+    """A geometry element attached to a frame; ``frame`` is that frame's transform in ``body``."""
+
+    element: etree._Element
+    body: str
+    frame: Transform
+    frame_name: str
+
+
+@dataclass
+class Body:
+    """A rigid body: mass (kg), centre of mass (3,) m and inertia (3, 3) kg m² about it, in the body frame."""
+
+    name: str
+    mass: float
+    com: np.ndarray
+    inertia: np.ndarray
+    element: etree._Element
+
+
+@dataclass
+class Coordinate:
+    """A generalized coordinate: radians or metres, with OpenSim's range and flags."""
+
+    name: str
+    joint: str
+    default: float
+    range: tuple[float, float]
+    clamped: bool
+    locked: bool
+    prescribed: bool
+    element: etree._Element
+
+
+@dataclass
+class TransformAxis:
+    """One axis of a joint's canonical form; value = ``function(coordinate)``."""
+
+    name: str
+    kind: str  # "rotation" or "translation"
+    axis: np.ndarray  # (3,) unit vector
+    coordinate: str | None
+    function: Function
+    element: etree._Element
+
+    def value(self, coords: dict[str, float]) -> float:
+        x = coords[self.coordinate] if self.coordinate is not None else 0.0
+        return float(self.function(np.array([x]))[0])
+
+
+@dataclass
+class Joint:
+    """A joint in canonical form: ``parent_frame`` in ``parent`` and ``child_frame`` in ``child``."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    parent_frame: Transform
+    child_frame: Transform
+    rotations: list[TransformAxis]
+    translations: list[TransformAxis]
+    coordinates: list[str]
+    element: etree._Element
+
+    def transform(self, coords: dict[str, float]) -> Transform:
+        """X_PB: the child body frame in the parent body frame at coordinate values ``coords``."""
+        t = sum((ax.value(coords) * ax.axis for ax in self.translations), np.zeros(3))
+        rot = np.eye(3)
+        for ax in self.rotations:
+            rot = rot @ axis_angle_matrix(ax.axis, ax.value(coords))
+        return self.parent_frame @ Transform(pos=t) @ Transform(rot=rot) @ self.child_frame.inverse()
+
+
+@dataclass
+class Coupler:
+    """CoordinateCouplerConstraint: ``dependent = function(independent)``."""
+
+    name: str
+    dependent: str
+    independent: str
+    function: Function
+    element: etree._Element
+
+
+@dataclass
+class Marker:
+    name: str
+    body: str
+    position: np.ndarray  # (3,) metres in the body frame
+    element: etree._Element
+
+
+@dataclass
+class Skipped:
+    """An element o2m leaves out of the MuJoCo model, and why."""
+
+    element: str
+    name: str
+    reason: str
+
+
+@dataclass
+class Skeleton:
+    """The multibody model read from an .osim document."""
+
+    name: str
+    gravity: np.ndarray  # (3,) m/s², OpenSim ground frame
+    bodies: dict[str, Body]
+    joints: list[Joint]
+    coordinates: dict[str, Coordinate]
+    couplers: list[Coupler]
+    markers: list[Marker]
+    geometry: list[Geometry]
+    skipped: list[Skipped] = field(default_factory=list)
+    document: OsimDocument | None = None
+
+
+class SkeletonReader:
+    """Reads an :class:`OsimDocument` into a :class:`Skeleton`; one instance per document."""
+
+    def __init__(self, doc: OsimDocument):
+        self.doc = doc
+        self.model = doc.model
+        self._frames: dict[int, tuple[str, Transform, str]] = {}
+
+    # -- frames ------------------------------------------------------------------------
+    def frame(self, el: etree._Element, _depth: int = 0) -> tuple[str, Transform, str]:
+        """(body name, transform of frame ``el`` in that body, frame name)."""
+        key = id(el)
+        if key in self._frames:
+            return self._frames[key]
+        if _depth > 64:
+            raise self.doc.error(el, "frame chain is circular")
+        if el.tag == "Body":
+            out = (el.get("name"), Transform(), el.get("name"))
+        elif el.tag == "Ground":
+            out = ("ground", Transform(), "ground")
+        elif el.tag == "PhysicalOffsetFrame":
+            sock = el.find("socket_parent")
+            if sock is None:
+                raise self.doc.error(el, "has no <socket_parent>")
+            body, x_parent, _ = self.frame(self.doc.resolve(sock), _depth + 1)
+            t = el.find("translation")
+            o = el.find("orientation")
+            trans = _floats(t, 3, self.doc, "translation") if t is not None else np.zeros(3)
+            orient = _floats(o, 3, self.doc, "orientation") if o is not None else np.zeros(3)
+            out = (body, x_parent @ Transform(body_fixed_xyz(orient), trans), el.get("name"))
+        else:
+            raise self.doc.error(el, "is used as a frame but is not a Body, Ground or PhysicalOffsetFrame")
+        self._frames[key] = out
+        return out
+
+    def socket_frame(self, owner: etree._Element, socket: str) -> tuple[str, Transform, str]:
+        sock = owner.find(socket)
+        if sock is None:
+            raise self.doc.error(owner, f"has no <{socket}>")
+        return self.frame(self.doc.resolve(sock))
+
+    # -- elements ----------------------------------------------------------------------
+    def set_objects(self, set_tag: str) -> list[etree._Element]:
+        objs: list[etree._Element] = []
+        for s in self.model.findall(set_tag):
+            holder = s.find("objects")
+            if holder is not None:
+                objs.extend(c for c in holder if isinstance(c.tag, str))
+        return objs
+
+    def check_known(self, el: etree._Element) -> None:
+        if el.tag not in opensim_typenames():
+            raise self.doc.error(el, "is not an element OpenSim 4.6 knows (misspelt, or from a plugin)")
+
+    def body(self, el: etree._Element) -> Body:
+        mass = float(_floats(el.find("mass"), 1, self.doc, "mass")[0]) if el.find("mass") is not None else 0.0
+        if mass < 0:
+            raise self.doc.error(el, f"has negative mass {mass}")
+        com = _floats(el.find("mass_center"), 3, self.doc, "mass_center") if el.find("mass_center") is not None \
+            else np.zeros(3)
+        inertia = np.zeros((3, 3))
+        iel = el.find("inertia")
+        if iel is not None:
+            ixx, iyy, izz, ixy, ixz, iyz = _floats(iel, 6, self.doc, "inertia")
+            inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        return Body(el.get("name"), mass, com, inertia, el)
+
+    def coordinate(self, el: etree._Element, joint: str) -> Coordinate:
+        rng = el.find("range")
+        # OpenSim 4.x omits properties at their default: range [-10, 10], not clamped, not locked.
+        lo, hi = _floats(rng, 2, self.doc, "range") if rng is not None else (-10.0, 10.0)
+        if lo > hi:
+            raise self.doc.error(el, f"has range [{lo}, {hi}] with minimum above maximum")
+        dv = el.find("default_value")
+        default = float(_floats(dv, 1, self.doc, "default_value")[0]) if dv is not None else 0.0
+        return Coordinate(
+            name=el.get("name"), joint=joint, default=default, range=(float(lo), float(hi)),
+            clamped=_bool(el.find("clamped"), False), locked=_bool(el.find("locked")),
+            prescribed=_bool(el.find("prescribed")) and el.find("prescribed_function") is not None
+            and len(el.find("prescribed_function")) > 0,
+            element=el,
+        )
+
+    def function_of(self, holder: etree._Element) -> Function:
+        """The function element inside ``holder`` (first child element that is a function)."""
+        for child in holder:
+            if isinstance(child.tag, str) and child.tag[:1].isupper():
+                try:
+                    return parse_function(child)
+                except UnsupportedElementError as exc:
+                    owner = self.doc.owner_of(holder)
+                    where = f" (in {owner.tag} '{owner.get('name')}')" if owner is not self.model else ""
+                    bad = child if exc.element == child.tag else next(
+                        (e for e in child.iter(exc.element or child.tag)), child)
+                    msg = str(exc).split("> ", 1)[-1]
+                    raise self.doc.error(bad, f"{msg}{where}") from None
+        raise self.doc.error(holder, "holds no function")
+
+    def joint(self, el: etree._Element, coords: dict[str, Coordinate]) -> Joint:
+        self.check_known(el)
+        if el.tag not in SUPPORTED_JOINTS:
+            raise self.doc.error(el, f"is a joint type o2m cannot convert (supported: "
+                                     f"{', '.join(sorted(SUPPORTED_JOINTS))})")
+        if _bool(el.find("reverse")):
+            raise self.doc.error(el, "is a reversed joint, which o2m does not convert")
+        parent, x_pf, _ = self.socket_frame(el, "socket_parent_frame")
+        child, x_bm, _ = self.socket_frame(el, "socket_child_frame")
+        names: list[str] = []
+        holder = el.find("coordinates")
+        for cel in holder if holder is not None else []:
+            if cel.tag != "Coordinate":
+                continue
+            c = self.coordinate(cel, el.get("name"))
+            if c.name in coords:
+                raise self.doc.error(cel, "is a second coordinate with this name")
+            coords[c.name] = c
+            names.append(c.name)
+        rotations: list[TransformAxis] = []
+        translations: list[TransformAxis] = []
+        if el.tag == "CustomJoint":
+            st = el.find("SpatialTransform")
+            if st is None:
+                raise self.doc.error(el, "has no <SpatialTransform>")
+            for ta in st.findall("TransformAxis"):
+                axname = ta.get("name", "")
+                kind = "rotation" if axname.startswith("rotation") else "translation"
+                if not (axname.startswith("rotation") or axname.startswith("translation")):
+                    raise self.doc.error(ta, "is not named rotation1-3 or translation1-3")
+                axis = _floats(ta.find("axis"), 3, self.doc, "axis")
+                norm = np.linalg.norm(axis)
+                if norm < 1e-12:
+                    raise self.doc.error(ta, "has a zero <axis>")
+                cnames = (ta.findtext("coordinates") or "").split()
+                if len(cnames) > 1:
+                    raise self.doc.error(ta, f"depends on {len(cnames)} coordinates; o2m supports one")
+                cname = cnames[0] if cnames else None
+                if cname is not None and cname not in coords:
+                    raise self.doc.error(ta, f"uses coordinate '{cname}', which its joint does not define")
+                func = self.function_of(ta)
+                axobj = TransformAxis(axname, kind, axis / norm, cname, func, ta)
+                (rotations if kind == "rotation" else translations).append(axobj)
+            rotations.sort(key=lambda a: a.name)
+            translations.sort(key=lambda a: a.name)
+        else:
+            spec = JOINT_AXES[el.tag]
+            if len(names) != len(spec):
+                raise self.doc.error(el, f"has {len(names)} coordinates; a {el.tag} has {len(spec)}")
+            ident = _identity_function()
+            for i, (cname, (kind, axis)) in enumerate(zip(names, spec, strict=True)):
+                axobj = TransformAxis(f"{kind}{i + 1}", kind, np.array(axis), cname, ident, el)
+                (rotations if kind == "rotation" else translations).append(axobj)
+        return Joint(el.get("name"), el.tag, parent, child, x_pf, x_bm, rotations, translations, names, el)
+
+    def read(self) -> Skeleton:
+        doc = self.doc
+        skipped: list[Skipped] = []
+        bodies: dict[str, Body] = {}
+        for el in self.set_objects("BodySet"):
+            self.check_known(el)
+            if el.tag != "Body":
+                raise doc.error(el, "is in the BodySet but is not a Body")
+            b = self.body(el)
+            if b.name in bodies or b.name == "ground":
+                raise doc.error(el, "is a second body with this name")
+            bodies[b.name] = b
+        coords: dict[str, Coordinate] = {}
+        joints = [self.joint(el, coords) for el in self.set_objects("JointSet")]
+        couplers: list[Coupler] = []
+        for el in self.set_objects("ConstraintSet"):
+            self.check_known(el)
+            enforced = _bool(el.find("isEnforced"), True) and not _bool(el.find("isDisabled"), False)
+            if el.tag != "CoordinateCouplerConstraint":
+                if not enforced:
+                    skipped.append(Skipped(el.tag, el.get("name", ""), "constraint is not enforced"))
+                    continue
+                raise doc.error(el, "is a constraint o2m cannot convert (only CoordinateCouplerConstraint)")
+            if not enforced:
+                skipped.append(Skipped(el.tag, el.get("name", ""), "constraint is not enforced"))
+                continue
+            ind = (el.findtext("independent_coordinate_names") or "").split()
+            dep = (el.findtext("dependent_coordinate_name") or "").strip()
+            if len(ind) != 1:
+                raise doc.error(el, f"couples {len(ind)} independent coordinates; o2m supports one")
+            for c in ind + [dep]:
+                if c not in coords:
+                    raise doc.error(el, f"names coordinate '{c}', which no joint defines")
+            fholder = el.find("coupled_coordinates_function")
+            if fholder is None:
+                raise doc.error(el, "has no <coupled_coordinates_function>")
+            couplers.append(Coupler(el.get("name", dep), dep, ind[0], self.function_of(fholder), el))
+        markers: list[Marker] = []
+        for el in self.set_objects("MarkerSet"):
+            if el.tag != "Marker":
+                skipped.append(Skipped(el.tag, el.get("name", ""), "not a Marker"))
+                continue
+            body, x, _ = self.socket_frame(el, "socket_parent_frame")
+            loc = _floats(el.find("location"), 3, doc, "location") if el.find("location") is not None \
+                else np.zeros(3)
+            markers.append(Marker(el.get("name"), body, x.apply(loc), el))
+        geometry: list[Geometry] = []
+        for holder in self.model.iter("attached_geometry"):
+            owner = holder.getparent()
+            if owner.tag not in ("Body", "Ground", "PhysicalOffsetFrame"):
+                continue
+            body, x, fname = self.frame(owner)
+            for g in holder:
+                if isinstance(g.tag, str):
+                    geometry.append(Geometry(g, body, x, fname))
+        for set_tag in ("ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet", "ComponentSet"):
+            for el in self.set_objects(set_tag):
+                self.check_known(el)
+                if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
+                    continue  # paths are read by o2m.paths
+                skipped.append(Skipped(el.tag, el.get("name", ""), _skip_reason(set_tag)))
+        grav = self.model.find("gravity")
+        gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
+        return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,
+                        markers, geometry, skipped, doc)
+
+
+def _skip_reason(set_tag: str) -> str:
+    return {
+        "ForceSet": "this force is not converted yet",
+        "ContactGeometrySet": "contact geometry is not converted",
+        "ControllerSet": "controllers are not part of a MuJoCo model",
+        "ProbeSet": "probes are analysis tools, not part of a MuJoCo model",
+        "ComponentSet": "generic components are not converted",
+    }[set_tag]
+
+
+def read_skeleton(doc: OsimDocument) -> Skeleton:
+    """Read the multibody part of ``doc``."""
+    return SkeletonReader(doc).read()

@@ -1,0 +1,79 @@
+"""OpenSim's own one-pose failures: a path length that jumps at one pose and not at its neighbours.
+
+OpenSim's wrapping can take the wrong way round in a narrow band of poses. Such a pose is no
+fair test of a converted model, so comparisons detect it here and leave it out with the
+evidence (the length at the pose and at its two neighbours).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from o2m.osim.pair import ModelPair
+from o2m.osim.runtime import TRANSLATIONAL
+
+__all__ = ["DLDQ_CONSISTENCY", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "one_pose_spikes", "opensim_spikes",
+           "outlying_changes"]
+
+#: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
+SPIKE_STEP = 0.01
+SPIKE_LINEAR_STEP = 1e-3
+SPIKE_TOL = 1e-3
+#: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
+DLDQ_CONSISTENCY = 1e-3
+
+#: A length change between sweep neighbours that departs from its neighbours' by more than this
+#: (m) marks a step or, with an opposite one next to it, a spike of OpenSim's length.
+OUTLIER = 2.5e-4
+
+def one_pose_spikes(d: np.ndarray, odd: np.ndarray) -> np.ndarray:
+    """(n + 1,) bool: the sweep poses where a length leaves and comes back within one interval
+    either side (two opposite outlying changes next to each other), from its changes ``d`` (n,)
+    and their :func:`outlying_changes` ``odd`` (n,)."""
+    spike = np.zeros(len(d) + 1, bool)
+    spike[1:-1] = odd[:-1] & odd[1:] & (np.sign(d[:-1]) != np.sign(d[1:]))
+    return spike
+
+
+def outlying_changes(d: np.ndarray, tol: float = OUTLIER) -> np.ndarray:
+    """(n,) bool: the changes ``d`` (n,) between sweep neighbours that depart by more than ``tol``
+    from the median of the two changes either side: a step or a spike of a swept length."""
+    pad = np.pad(d, 2, mode="edge")
+    around = np.median(np.stack([pad[:-4], pad[1:-3], pad[3:-1], pad[4:]]), axis=0)
+    return np.abs(d - around) > tol
+
+
+def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
+                   lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim length is an isolated spike at
+    the pose of independent ``values``: for some independent coordinate, moving it by
+    :data:`SPIKE_STEP` radians (:data:`SPIKE_LINEAR_STEP` m) either way gives two lengths that
+    agree with each other within :data:`SPIKE_TOL` while the length at the pose differs from
+    their mean by more than :data:`SPIKE_TOL`. A smooth path cannot do that (its second
+    difference over 0.01 rad is ~1e-5 m), nor can a conditional point's switch (a step, where
+    the two neighbours differ); it is OpenSim's wrapping taking a wrong way round in a narrow band
+    of poses (Arm26's BIClong round BIClonghh: 86 mm longer for shoulder elevation in 0.515-0.518
+    rad). Returns muscle index -> {"coordinate", "length", "neighbours"} (m)."""
+    out: dict[int, dict[str, Any]] = {}
+    if not len(muscles):
+        return out
+    idx = np.asarray(list(muscles), dtype=int)
+    base = pair.os_lengths(pair.os_state(values)) if lengths is None else np.asarray(lengths)
+    for c in pair.indep:
+        name = c.getName()
+        h = SPIKE_LINEAR_STEP if int(c.getMotionType()) == TRANSLATIONAL else SPIKE_STEP
+        try:
+            up = pair.os_lengths(pair.os_state({**values, name: values[name] + h}))
+            dn = pair.os_lengths(pair.os_state({**values, name: values[name] - h}))
+        except Exception:
+            continue
+        for i in idx:
+            if int(i) in out:
+                continue
+            if abs(up[i] - dn[i]) < SPIKE_TOL and abs(base[i] - 0.5 * (up[i] + dn[i])) > SPIKE_TOL:
+                out[int(i)] = {"coordinate": name, "length": float(base[i]),
+                               "neighbours": [float(dn[i]), float(up[i])]}
+    return out

@@ -1,0 +1,8 @@
+"""The paper's experiment on MoBL-ARMS (Ikkala & Hämäläinen, 2020): dataset, muscle force fit,
+CMA-ES, corrective controls, speed and figures, in the order :func:`run_paper` runs them."""
+
+from o2m.paper.dataset import Dataset, load_dataset, make_dataset
+from o2m.paper.pipeline import FULL, QUICK, Experiment, Settings, joint_mae, load_experiment, run_paper
+
+__all__ = ["FULL", "QUICK", "Dataset", "Experiment", "Settings", "joint_mae", "load_dataset", "load_experiment",
+           "make_dataset", "run_paper"]

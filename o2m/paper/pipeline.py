@@ -1,0 +1,282 @@
+"""The paper's experiment on MoBL-ARMS, end to end: convert, simulate, fit, correct, measure.
+
+:func:`load_experiment` converts the bundled MoBL-ARMS model (no wrap objects, wrist locked; the
+model the OpenSim references were computed with) and lays the stored dataset out for MuJoCo:
+initial states, controls and OpenSim joint trajectories of every successful set.
+:func:`run_paper` then fits the model in two stages on the training sets: first each muscle's
+force to OpenSim's tendon forces along the training trajectories (:mod:`o2m.force_fit`, which
+the paper did not do), then the paper's 160 parameters to the joint trajectories with CMA-ES
+(:mod:`o2m.fitting`). It fits corrective controls on the test sets (:mod:`o2m.corrections`) and
+writes everything the figures need to ``<data>/results/``:
+
+``muscle_forces.json`` the muscle force fit (:meth:`o2m.force_fit.ForceFit.save`)
+``parameters.json``   the CMA-ES fit (:func:`o2m.fitting.save_fit`)
+``checkpoint.pkl``    CMA-ES state, to resume an interrupted fit (not kept in git)
+``results.npz``       per test set and DoF, mean absolute joint error (rad) of the converted,
+                      force-fitted, fitted and corrected model; per test set and muscle, mean absolute
+                      correction; joint trajectories of the first test sets for the overlay
+``summary.json``      the headline numbers and the settings (quick or full)
+
+and the fitted model itself as MJCF beside the converted one (``<model_dir>/<stem>_fitted.xml``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from o2m import models
+from o2m.convert import ConvertOptions, convert, convert_once
+from o2m.mj.simulate import controls_from_excitations, initial_state, muscle_activations, rollout
+from o2m.paper.dataset import Dataset, load_dataset
+from o2m.paper.fitting import (
+    FitResult,
+    TrajectoryObjective,
+    checkpoint_matches,
+    fit_cma,
+    free_coordinates,
+    load_fit,
+    parameter_space,
+    save_fit,
+)
+from o2m.paper.force_fit import ForceFit, fit_forces, sample_states, static_curves
+
+__all__ = ["Experiment", "FULL", "QUICK", "Settings", "joint_mae", "load_experiment", "run_paper"]
+
+DATA_DIR = Path("data/mobl_arms")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Budgets of one run of the paper's pipeline."""
+
+    generations: int
+    popsize: int | None
+    train_sets: int | None  # None: all training sets
+    test_sets: int | None
+    correction_generations: int
+    correction_sweeps: int = 3  # passes over the spline blocks (each block re-fitted after its successors moved)
+    force_stride: int = 2  # every force_stride-th OpenSim sample (2 ms apart) enters the muscle force fit
+    force_nfev: int = 600  # least-squares evaluations per muscle
+    overlay_sets: int = 3
+    seed: int = 0
+    quick_conversion: bool = False  # the converter's quick wrap-fit sizes (ConvertOptions.quick)
+
+
+#: The budget of the stored result: the muscle force fit on every other sample of the training
+#: sets; 40 generations of 12 candidates, each simulated on all training sets (early-stopped on the
+#: validation sets); corrections with 6 generations per spline block and 3 passes over the blocks
+#: (on 4 test sets: 1 pass 0.0116 rad, 2 passes 0.0087, 3 passes 0.0078, 4 passes 0.0076).
+FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=6)
+QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2, correction_sweeps=1,
+                 force_stride=10, force_nfev=60, quick_conversion=True)
+
+
+@dataclass
+class Experiment:
+    """The dataset laid out for MuJoCo.
+
+    Attributes:
+        model: the converted MoBL-ARMS model; xml: its file.
+        dataset: the stored OpenSim dataset.
+        dofs: the free DoFs compared (rad).
+        muscles: muscle names, in excitation column order.
+        init: shape (n_sets, nstate); controls: (n_sets, T - 1, nu); reference: (n_sets, T, n_dofs).
+        Rows of failed sets are NaN.
+    """
+
+    model: mujoco.MjModel
+    xml: Path
+    dataset: Dataset
+    dofs: list[str]
+    muscles: list[str]
+    init: np.ndarray
+    controls: np.ndarray
+    reference: np.ndarray
+
+
+def load_experiment(data_dir: str | os.PathLike[str] = DATA_DIR, model_dir: str | os.PathLike[str] = "out/paper",
+                    *, options: ConvertOptions = ConvertOptions(), reconvert: bool = False) -> Experiment:  # noqa: B008
+    """Convert the dataset's model into ``model_dir`` (unless that conversion, with ``options``, is
+    already there: :func:`o2m.convert.convert_once`); lay out the data."""
+
+    ds = load_dataset(data_dir)
+    fetched = models.fetch_model_with_geometry(ds.meta["model"], progress=False)
+    if models.sha256_of(fetched.osim) != ds.meta["model_sha256"]:
+        raise ValueError(f"the dataset was made with another version of {ds.meta['model']}")
+    if reconvert:
+        xml = convert(fetched.osim, model_dir, options, geometry_dirs=[fetched.geometry_dir]).xml
+    else:
+        xml = convert_once(fetched.osim, model_dir, options, geometry_dirs=[fetched.geometry_dir])
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    dofs = free_coordinates(model, ds.coordinate_names)
+    muscles = list(ds.activations.muscles)
+    cols = [ds.coordinate_names.index(d) for d in dofs]
+    n, n_t = len(ds.status), len(ds.times)
+    init = np.full((n, mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)), np.nan)
+    for i in np.flatnonzero(ds.ok):
+        init[i] = initial_state(model, dict(zip(ds.coordinate_names, ds.coordinates[i, 0], strict=False)),
+                                speeds=dict(zip(ds.coordinate_names, ds.speeds[i, 0], strict=False)),
+                                activations=dict(zip(ds.muscle_names, ds.opensim_activations[i, 0], strict=False)))
+    controls = controls_from_excitations(model, muscles, ds.activations.values)
+    reference = ds.coordinates[:, :, cols]
+    assert reference.shape == (n, n_t, len(dofs))
+    return Experiment(model, xml, ds, dofs, muscles, init, controls, reference)
+
+
+def joint_mae(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Mean absolute joint error of ``model`` per set and DoF, shape (len(sets), n_dofs), rad; and the trajectories."""
+    tr = rollout(model, exp.init[sets], exp.controls[sets], joint_names=exp.dofs)
+    err = np.mean(np.abs(tr.coordinates - exp.reference[sets]), axis=1)
+    err[tr.diverged] = np.nan
+    return err, tr.coordinates
+
+
+def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings = FULL,
+              model_dir: str | os.PathLike[str] = "out/paper", results_dir: str | os.PathLike[str] | None = None,
+              refit: bool = False, progress: bool = True, executor=None) -> dict:
+    """Fit parameters and corrections and write ``results/`` (see the module docstring); returns the summary.
+
+    ``executor`` (any :class:`concurrent.futures.Executor`, e.g. a Dask client's ``get_executor()``)
+    evaluates the CMA-ES candidates, one task each; by default they run here on all cores.
+    """
+    from tqdm.auto import tqdm
+
+    from o2m.paper.corrections import fit_corrections
+
+    exp = load_experiment(data_dir, model_dir, options=ConvertOptions(quick=settings.quick_conversion))
+    out = Path(results_dir) if results_dir else Path(data_dir) / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    train = exp.dataset.train[: settings.train_sets] if settings.train_sets else exp.dataset.train
+    test = exp.dataset.test[: settings.test_sets] if settings.test_sets else exp.dataset.test
+    t_force = time.perf_counter()
+    forces = fit_muscle_forces(exp, train, out / "muscle_forces.json", settings=settings, refit=refit,
+                               progress=progress)
+    force_model = forces.apply(exp.model)
+    force_seconds = time.perf_counter() - t_force
+    space = parameter_space(force_model, exp.dofs, exp.muscles)
+    objective = TrajectoryObjective(force_model, space, exp.init[train], exp.controls[train], exp.reference[train],
+                                    exp.dofs, executor=executor)
+    held = [i for i in exp.dataset.validation if exp.dataset.ok[i]]
+    validation = TrajectoryObjective(force_model, space, exp.init[held], exp.controls[held], exp.reference[held],
+                                     exp.dofs) if held else None
+    fit_file = out / "parameters.json"
+    t0 = time.perf_counter()
+    if fit_file.exists() and not refit:
+        fit = load_fit(fit_file)
+        if fit.names != space.names:
+            raise ValueError(f"{fit_file} has other parameters than this model; rerun with refit=True")
+    else:
+        ckpt = out / "checkpoint.pkl"
+        if ckpt.exists() and not checkpoint_matches(ckpt, objective.space, settings.seed):
+            print(f"{ckpt}: left by a fit from another start (an earlier run); starting afresh")
+            ckpt.unlink()
+        fit = fit_cma(objective, seed=settings.seed, generations=settings.generations, popsize=settings.popsize,
+                      checkpoint=ckpt, progress=progress, validation=validation,
+                      settings={"train_sets": train, "validation_sets": held, "data": str(data_dir),
+                                "xml": exp.xml.name})
+        save_fit(fit_file, fit, space)
+    fit_seconds = time.perf_counter() - t0
+    fitted = space.apply(force_model, fit.x)
+    fitted_xml = exp.xml.with_name(exp.xml.stem + "_fitted.xml")  # beside the converted model: its meshes
+    forces.write_mjcf(exp.xml, fitted_xml)
+    space.write_mjcf(force_model, fit.x, fitted_xml, fitted_xml)
+
+    err_converted, q_converted = joint_mae(exp, exp.model, test)
+    err_forces, q_forces = joint_mae(exp, force_model, test)
+    err_fitted, q_fitted = joint_mae(exp, fitted, test)
+    corr_err, corr_size, q_corrected = [], [], []
+    t1 = time.perf_counter()
+    for i in tqdm(test, desc="corrections", unit="set", disable=not progress):
+        r = fit_corrections(fitted, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i],
+                            exp.dofs, generations=settings.correction_generations, sweeps=settings.correction_sweeps,
+                            seed=settings.seed + i,
+                            start=correction_start(exp, fitted, i))
+        corr_err.append(np.mean(np.abs(r.coordinates - exp.reference[i]), axis=0))
+        corr_size.append(np.mean(np.abs(r.correction), axis=0))
+        q_corrected.append(r.coordinates)
+    corr_seconds = time.perf_counter() - t1
+    k = min(settings.overlay_sets, len(test))
+    np.savez_compressed(
+        out / "results.npz", dofs=np.array(exp.dofs), muscles=np.array(exp.muscles), test=np.array(test),
+        times=exp.dataset.times, err_converted=err_converted, err_forces=err_forces, err_fitted=err_fitted,
+        err_corrected=np.array(corr_err), correction_mae=np.array(corr_size), overlay_sets=np.array(test[:k]),
+        overlay_opensim=exp.reference[test[:k]], overlay_converted=q_converted[:k], overlay_forces=q_forces[:k],
+        overlay_fitted=q_fitted[:k], overlay_corrected=np.array(q_corrected[:k]))
+    stages = {"converted": err_converted, "force_fitted": err_forces, "fitted": err_fitted,
+              "corrected": np.array(corr_err)}
+    summary = {
+        "settings": settings.__dict__, "n_train": len(train), "n_test": len(test),
+        "mean_error_rad": {k: float(np.nanmean(v)) for k, v in stages.items()},
+        "per_joint_error_rad": {d: {k: float(np.nanmean(v[:, j])) for k, v in stages.items()}
+                                for j, d in enumerate(exp.dofs)},
+        "diverged_test_sets": {k: int(np.isnan(v).any(axis=1).sum()) for k, v in stages.items() if k != "corrected"},
+        "mean_abs_correction": float(np.mean(corr_size)),
+        "muscle_forces": forces.summary(),
+        "fitted_xml": str(fitted_xml),
+        "fit": {"cost0": fit.cost0, "cost": fit.cost, "evaluations": fit.evaluations, "wall_time_s": fit.wall_time,
+                "generations": len(fit.history), "validation_cost0": fit.validation_cost0,
+                "validation_cost": fit.validation_cost,
+                "best_training_cost": fit.settings.get("best_training_cost", fit.cost)},
+        "seconds": {"muscle_forces": force_seconds, "fit": fit_seconds, "corrections": corr_seconds},
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    return summary
+
+
+def correction_start(exp: Experiment, model: mujoco.MjModel, i: int) -> np.ndarray | None:
+    """:func:`o2m.corrections.force_matching_start` for set ``i`` (None when the dataset has no tendon forces)."""
+    from o2m.paper.corrections import force_matching_start
+
+    ds = exp.dataset
+    if not np.isfinite(ds.tendon_forces[i]).all():
+        return None
+    s = sample_states(model, ds.coordinates[[i]], ds.speeds[[i]], ds.opensim_activations[[i]], ds.tendon_forces[[i]],
+                      ds.coordinate_names, ds.muscle_names, stride=1)
+    cols = [ds.muscle_names.index(m) for m in exp.muscles]
+    return force_matching_start(model, ds.activations.values[i], exp.muscles, s.length[:, cols], s.velocity[:, cols],
+                                s.force[:, cols])
+
+
+def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[str], *, settings: Settings = FULL,
+                      refit: bool = False, progress: bool = True) -> ForceFit:
+    """The muscle force fit on ``sets`` (:mod:`o2m.force_fit`), loaded from ``path`` unless ``refit``; saved there."""
+    path = Path(path)
+    if path.exists() and not refit:
+        forces = ForceFit.load(path)
+        if set(forces.muscles) != set(exp.muscles):
+            raise ValueError(f"{path} fits other muscles than this model; rerun with refit=True")
+        return forces
+    ds = exp.dataset
+    if not np.isfinite(ds.tendon_forces[sets]).any():
+        raise ValueError("the dataset has no OpenSim tendon forces (it predates them): regenerate it with "
+                         "`python -m o2m dataset`")
+
+    # MuJoCo's own activations for the sets' excitations, not OpenSim's: the fit then also absorbs
+    # what MuJoCo's activation dynamics cannot copy (and, in part, an elastic tendon's lag)
+    cols = [list(ds.activations.muscles).index(n) for n in ds.muscle_names]
+    activations = muscle_activations(exp.model, ds.muscle_names, ds.activations.values[sets][..., cols],
+                                     ds.opensim_activations[sets][:, 0, :])
+    samples = sample_states(exp.model, ds.coordinates[sets], ds.speeds[sets], activations, ds.tendon_forces[sets],
+                            ds.coordinate_names, ds.muscle_names, stride=settings.force_stride)
+    osim = models.fetch_model(ds.meta["model"], progress=False)
+    forces = fit_forces(exp.model, samples, static=static_curves(osim, exp.model), max_nfev=settings.force_nfev,
+                        progress=progress)
+    forces.settings.update(sets=list(map(int, sets)), stride=settings.force_stride, max_nfev=settings.force_nfev)
+    forces.save(path)
+    return forces
+
+
+def fitted_model(exp: Experiment, forces: ForceFit, fit: FitResult) -> mujoco.MjModel:
+    """The converted model with the muscle force fit and the CMA-ES parameters written in."""
+    force_model = forces.apply(exp.model)
+    space = parameter_space(force_model, exp.dofs, exp.muscles)
+    if fit.names != space.names:
+        raise ValueError("the CMA-ES fit has other parameters than this model; rerun `python -m o2m paper --refit`")
+    return space.apply(force_model, fit.x)

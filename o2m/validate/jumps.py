@@ -1,0 +1,247 @@
+"""Jumps of tendon lengths over fine one-coordinate sweeps, and the floor OpenSim's own steps set.
+
+A wrapped path that flips sides shows as a jump between neighbouring sweep poses. OpenSim's
+own paths can step too (a wrap switching on or off); no continuous MuJoCo tendon can follow a
+step, which sets a floor on the length error any conversion can reach.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from o2m.osim.pair import ModelPair
+from o2m.osim.runtime import sample_bounds
+from o2m.osim.spikes import one_pose_spikes, outlying_changes
+from o2m.validate.kinematics import jsonable
+from o2m.validate.muscles import LEN_PCT
+
+__all__ = ["continuous_tendon_front", "opensim_length_steps", "sweep_jumps"]
+
+
+def sweep_jumps(
+    osim_path: str | os.PathLike,
+    mjcf_path: str | os.PathLike,
+    *,
+    step: float = float(np.deg2rad(1)),
+    linear_step: float = 1e-3,
+    opensim: bool = True,
+    jump_factor: float = 2.0,
+    jump_atol: float = 1e-3,
+    progress: bool = False,
+    assembly_accuracy: float | None = 1e-12,
+) -> dict[str, Any]:
+    """Sweep each independent coordinate over its range (steps of ``step`` radians, or
+    ``linear_step`` metres for a translational coordinate; the others at their defaults) and
+    report the largest change of each tendon length between neighbouring steps.
+
+    Returns a JSON-safe dict::
+
+        {"osim_path", "mjcf_path", "step", "linear_step",
+         "coordinates": {coordinate: {"range": [lo, hi], "steps": n, "opensim_swept": bool,
+             "tendons": {tendon: {"mujoco": max |dL| (m), "mujoco_at": [q0, q1],
+                                  "opensim": max |dL| (m) or None, "opensim_at": [q0, q1] or None}}}},
+         "worst": {tendon: {"coordinate", "mujoco", "opensim"}},   # each tendon's largest MuJoCo jump
+         "jumps": [{"tendon", "coordinate", "mujoco", "opensim", "at"}, ...]}
+
+    ``jumps`` lists, largest first, the (tendon, coordinate) pairs whose MuJoCo jump exceeds
+    ``jump_factor`` times OpenSim's plus ``jump_atol`` metres (without OpenSim, with
+    ``opensim=False`` or for a tendon OpenSim lacks: ``jump_atol`` alone): wrapping flips and
+    other discontinuities. OpenSim steps that fail to assemble are left out. OpenSim is swept
+    only along coordinates that some OpenSim path spans or that change some MuJoCo tendon length
+    (``opensim_swept``); along the others every OpenSim jump is 0 (e.g. a free base's
+    translations, which would take thousands of 1 mm steps).
+    """
+    from tqdm.auto import tqdm
+
+    pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    tnames = pair.tendon_names
+    os_index = {n: i for i, (n, _, _) in enumerate(pair.matched)}
+    out: dict[str, Any] = {"osim_path": pair.osim_path, "mjcf_path": pair.mjcf_path, "step": float(step),
+                           "linear_step": float(linear_step), "coordinates": {}, "worst": {}, "jumps": []}
+    spans = pair.spanned() if opensim else {}
+    desc = f"sweep {os.path.basename(pair.osim_path)}"
+    for c in tqdm(pair.indep, disable=not progress, desc=desc):
+        cname = c.getName()
+        qs = pair.sweep_values(c, step, linear_step)
+        l_mj = np.array([pair.mj_lengths({**pair.defaults, cname: float(q)}) for q in qs]).reshape(len(qs), -1)
+        l_os = np.full((len(qs), len(pair.matched)), np.nan)
+        # OpenSim only where a length can change: a path spans the coordinate in OpenSim, or a
+        # MuJoCo tendon length changes; elsewhere every OpenSim length is constant (jump 0).
+        os_needed = opensim and bool(pair.matched) and (
+            any(cname in s for s in spans.values()) or bool(l_mj.size and np.ptp(l_mj, axis=0).max() > 1e-12))
+        if os_needed:
+            for k, q in enumerate(qs):
+                try:
+                    l_os[k] = pair.os_lengths(pair.os_state({cname: float(q)}, assemble=False))
+                except Exception:
+                    pass
+        elif opensim:
+            l_os[:] = 0.0
+        d_mj = np.abs(np.diff(l_mj, axis=0))
+        d_os = np.abs(np.diff(l_os, axis=0))
+        tend: dict[str, Any] = {}
+        for t, tn in enumerate(tnames):
+            k = int(np.argmax(d_mj[:, t])) if len(d_mj) else 0
+            row: dict[str, Any] = {"mujoco": float(d_mj[k, t]) if len(d_mj) else 0.0,
+                                   "mujoco_at": [float(qs[k]), float(qs[k + 1])],
+                                   "opensim": None, "opensim_at": None}
+            i = os_index.get(tn)
+            if opensim and i is not None and np.isfinite(d_os[:, i]).any():
+                ko = int(np.nanargmax(d_os[:, i]))
+                row["opensim"] = float(d_os[ko, i])
+                row["opensim_at"] = [float(qs[ko]), float(qs[ko + 1])]
+            tend[tn] = row
+            limit = jump_factor * (row["opensim"] or 0.0) + jump_atol
+            if row["mujoco"] > limit:
+                out["jumps"].append({"tendon": tn, "coordinate": cname, "mujoco": row["mujoco"],
+                                     "opensim": row["opensim"], "at": row["mujoco_at"]})
+            w = out["worst"].get(tn)
+            if w is None or row["mujoco"] > w["mujoco"]:
+                out["worst"][tn] = {"coordinate": cname, "mujoco": row["mujoco"], "opensim": row["opensim"]}
+        lo, hi = sample_bounds(c)
+        out["coordinates"][cname] = {"range": [lo, hi], "steps": int(len(qs)), "opensim_swept": os_needed,
+                                     "tendons": tend}
+    out["jumps"].sort(key=lambda j: -j["mujoco"])
+    return jsonable(out)
+
+
+def opensim_length_steps(
+    osim_path: str | os.PathLike,
+    mjcf_path: str | os.PathLike,
+    *,
+    step: float = float(np.deg2rad(0.5)),
+    linear_step: float = 5e-4,
+    min_step: float = 5e-4,
+    bisections: int = 40,
+    assembly_accuracy: float | None = 1e-12,
+) -> list[dict[str, Any]]:
+    """Discontinuities of OpenSim's own path lengths, and what they cost any continuous tendon.
+
+    Each independent coordinate is swept over its range (the others at their defaults) in steps
+    of ``step`` radians (``linear_step`` m); a neighbour interval whose length change stands out
+    from its neighbours' by more than ``min_step`` / 2 is bisected ``bisections`` times towards
+    the larger change. What is left (an interval of width ``range / 2**bisections``) changing by
+    more than ``min_step`` metres is a step of OpenSim's length (a wrap switching on or off, a
+    conditional point): a continuous function (a MuJoCo tendon without a matching flip) is at
+    least half of it away from OpenSim on one side of it.
+
+    Returns, largest ``floor_pct`` first, one dict per step::
+
+        {"path", "coordinate", "at": q (rad or m), "height": L(after) - L(before) (m),
+         "length": [L before, L after] (m),
+         "floor_pct": 100 * |height| / 2 / max(length)}  # a lower bound on any continuous
+                                                          # tendon's worst length error, in %
+
+    Only steps at the sweep's poses are found (a step that a narrow spike makes, or one away
+    from the other coordinates' defaults, can be missed): the floors are lower bounds.
+    """
+
+    pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    names = [n for n, _, _ in pair.matched]
+    out: list[dict[str, Any]] = []
+    spans = pair.spanned()
+
+    def lengths(cname: str, q: float) -> np.ndarray:
+        return pair.os_lengths(pair.os_state({**pair.defaults, cname: float(q)}, assemble=False))
+
+    for c in pair.indep:
+        cname = c.getName()
+        paths = [i for i, n in enumerate(names) if cname in spans.get(n, set())]
+        if not paths:
+            continue
+        qs = pair.sweep_values(c, step, linear_step)
+        L = np.array([lengths(cname, q) for q in qs])[:, paths]
+        dL = np.diff(L, axis=0)
+        for col, i in enumerate(paths):
+            for k in np.flatnonzero(outlying_changes(dL[:, col], min_step / 2)):
+                a, b = float(qs[k]), float(qs[k + 1])
+                la, lb = float(L[k, col]), float(L[k + 1, col])
+                for _ in range(bisections):
+                    mid = 0.5 * (a + b)
+                    lm = float(lengths(cname, mid)[i])
+                    if abs(lm - la) >= abs(lb - lm):
+                        b, lb = mid, lm
+                    else:
+                        a, la = mid, lm
+                if abs(lb - la) > min_step:
+                    out.append({"path": names[i], "coordinate": cname, "at": 0.5 * (a + b),
+                                "height": lb - la, "length": [la, lb],
+                                "floor_pct": 100.0 * abs(lb - la) / 2.0 / max(la, lb)})
+    out.sort(key=lambda s: -s["floor_pct"])
+    return out
+
+
+def continuous_tendon_front(
+    osim_path: str | os.PathLike,
+    mjcf_path: str | os.PathLike,
+    muscle: str,
+    coordinate: str,
+    *,
+    pcts: Sequence[float] = (LEN_PCT,),
+    n: int = 600,
+    assembly_accuracy: float | None = 1e-12,
+) -> dict[str, Any]:
+    """What any continuous tendon can reach against OpenSim, for one path along one coordinate.
+
+    A MuJoCo tendon has one length, and its moment arm is ``-dL/dq`` of it. OpenSim's length can
+    step (wraps switching), and its ``computeMomentArm`` need not be ``-dL/dq`` of its length
+    (several wraps on one segment; a MovingPathPoint next to a point of its own body). Sweeping
+    ``coordinate`` (``n`` poses over its range, the others at their defaults), this finds, for
+    each length tolerance p in ``pcts`` (% of OpenSim's length at every pose), the least RMS and
+    the largest moment-arm error against ``computeMomentArm`` of any continuous length within it
+    (a bounded least-squares problem over the length at the sweep poses,
+    :func:`scipy.optimize.lsq_linear`), or None where OpenSim's largest step leaves none within p
+    (:func:`opensim_length_steps`). OpenSim's one-pose spikes (two opposite outlying changes, as
+    :func:`o2m.lengthvia.outlying_changes` finds them) are no target. These are lower bounds for
+    the issue's errors, which sample every coordinate.
+
+    Returns ``{"q", "length", "moment_arm"`` (computeMomentArm) ``: (n,) arrays; "steps": the
+    path's steps along the coordinate; "spikes": [q]; "inconsistency_rms", "inconsistency_max":
+    computeMomentArm - (-dL/dq) away from outlying length changes (steps, spikes) (m);
+    "floor_pct": the largest step's floor; "front": {p: {"rms", "max"} (m) or None}}``.
+    """
+    from scipy.optimize import lsq_linear
+
+
+    pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    c = pair.coord(coordinate)
+    force = pair.force(muscle)
+    lo, hi = sample_bounds(c)
+    qs = np.linspace(lo, hi, n)
+    h = float(qs[1] - qs[0])
+    length, arm = [], []
+    for q in qs:
+        state = pair.os_state({**pair.defaults, coordinate: float(q)}, assemble=False)
+        length.append(force.getLength(state))
+        arm.append(force.computeMomentArm(state, c))
+    length_a, arm_a = np.array(length), np.array(arm)
+    arm_mid = 0.5 * (arm_a[1:] + arm_a[:-1])
+    d = np.diff(length_a)
+    odd = outlying_changes(d)
+    spike = one_pose_spikes(d, odd)
+    spiky = spike[:-1] | spike[1:]
+    steps = [s for s in opensim_length_steps(osim_path, mjcf_path, assembly_accuracy=assembly_accuracy)
+             if s["path"] == muscle and s["coordinate"] == coordinate]
+    diff = (arm_mid + d / h)[~odd]  # away from every outlying change: steps, spikes, kinks
+    floor = max((st["floor_pct"] for st in steps), default=0.0)
+    D = (np.eye(n, k=1) - np.eye(n))[:-1] / h
+    front: dict[float, dict[str, float] | None] = {}
+    for p in pcts:
+        if p <= floor:
+            front[float(p)] = None
+            continue
+        lo_b = np.where(spike, 0.0, length_a * (1 - p / 100))
+        hi_b = np.where(spike, 2.0 * length_a, length_a * (1 + p / 100))
+        r = lsq_linear(-D[~spiky], arm_mid[~spiky], bounds=(lo_b, hi_b))
+        res = -D[~spiky] @ r.x - arm_mid[~spiky]
+        front[float(p)] = {"rms": float(np.sqrt(np.mean(res**2))), "max": float(np.max(np.abs(res)))}
+    return {"q": qs, "length": length_a, "moment_arm": arm_a, "steps": steps, "spikes": qs[spike].tolist(),
+            "inconsistency_rms": float(np.sqrt(np.mean(diff**2))) if diff.size else 0.0,
+            "inconsistency_max": float(np.max(np.abs(diff))) if diff.size else 0.0, "floor_pct": floor,
+            "front": front}
+
+

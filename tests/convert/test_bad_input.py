@@ -1,0 +1,245 @@
+"""Bad input: each case raises a clear O2MError (naming the element, its name and its line),
+makes the CLI exit with status 1 and the message on stderr, and writes no output file.
+
+The cases start from one valid model (built with the opensim API and printed) and break one
+thing in its text. A missing mesh file is not an error: the model converts and the report
+lists the mesh as skipped.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import opensim as osim
+import pytest
+from lxml import etree
+
+from o2m.convert.converter import convert
+from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
+from tests.helpers import convert_options
+
+osim.Logger.setLevelString("error")
+
+SPLINE = ('<SimmSpline name="function"><x>-2 -1 0 0.5</x><y>0.001 0.004 -0.002 -0.005</y></SimmSpline>')
+
+
+def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False) -> str:
+    """ground -PinJoint j1-> b1 -CustomJoint knee-> b2, offsets on both sides; the knee's
+    translation1 is a SimmSpline. ``mesh`` attaches a Mesh geometry file to b1;
+    ``ellipsoid`` makes j1 an EllipsoidJoint."""
+    m = osim.Model()
+    m.setName(path.stem)
+    b1 = osim.Body("b1", 2.0, osim.Vec3(0.05, -0.2, 0.01), osim.Inertia(0.03, 0.012, 0.028, 0.0015, -0.0008, 0.002))
+    b2 = osim.Body("b2", 1.5, osim.Vec3(-0.02, -0.15, 0.03), osim.Inertia(0.02, 0.009, 0.021, -0.001, 0.0012, 0.0))
+    m.addBody(b1)
+    m.addBody(b2)
+    args = (m.getGround(), osim.Vec3(0.1, 0.8, -0.05), osim.Vec3(0.3, -0.2, 0.5), b1, osim.Vec3(0.02, 0.3, 0.01),
+            osim.Vec3(0.1, 0.4, -0.3))
+    if ellipsoid:
+        j1 = osim.EllipsoidJoint("j1", *args, osim.Vec3(0.1, 0.2, 0.15))
+    else:
+        j1 = osim.PinJoint("j1", *args)
+    m.addJoint(j1)
+    st = osim.SpatialTransform()
+    axes = [(0, 0, 1), (1, 0, 0), (0, 1, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    for i, ax in enumerate(axes):
+        ta = st.updTransformAxis(i)
+        names = osim.ArrayStr()
+        if i in (0, 3):
+            names.append("knee")
+        ta.setCoordinateNames(names)
+        ta.setAxis(osim.Vec3(*ax))
+        ta.set_function(osim.LinearFunction(1.0, 0.0) if i in (0, 3) else osim.Constant(0.0))
+    knee = osim.CustomJoint("knee", b1, osim.Vec3(0.03, -0.4, 0.02), osim.Vec3(-0.6, 0.2, 0.1), b2,
+                            osim.Vec3(0.01, 0.25, -0.01), osim.Vec3(0.2, -0.1, 0.7), st)
+    m.addJoint(knee)
+    knee.upd_coordinates(0).setRangeMin(-2.0)
+    knee.upd_coordinates(0).setRangeMax(0.5)
+    if mesh:
+        b1.attachGeometry(osim.Mesh(mesh))
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    tree = etree.parse(str(path))
+    (ta,) = tree.xpath("//CustomJoint[@name='knee']/SpatialTransform/TransformAxis[@name='translation1']")
+    ta.remove(ta.find("LinearFunction"))
+    ta.append(etree.fromstring(SPLINE))
+    tree.write(str(path), xml_declaration=True, encoding="UTF-8")
+    return path.read_text()
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory) -> str:
+    """Text of the valid model; checks that it converts."""
+    d = tmp_path_factory.mktemp("base")
+    text = _build_base(d / "base.osim")
+    conv = convert(d / "base.osim", d / "out", convert_options())
+    assert conv.xml.exists()
+    return text
+
+
+def line_of(text: str, needle: str) -> int:
+    """Line (1-based) of the first occurrence of ``needle`` in ``text``."""
+    i = text.index(needle)
+    return text.count("\n", 0, i) + 1
+
+
+@dataclass
+class Case:
+    """A broken document: ``text`` (None: no file at all), the error class, strings its message
+    must contain (the element, its name, its line)."""
+
+    text: str | None
+    error: type[O2MError]
+    expect: list[str]
+
+
+def _case(name: str, base: str, tmp_path: Path) -> Case:
+    if name == "missing-file":
+        return Case(None, ModelFileError, ["no such file"])
+    if name == "truncated":
+        text = base[: len(base) // 2]
+        return Case(text, ModelFileError, ["not well-formed XML", f":{text.count(chr(10)) + 1}:"])
+    if name == "empty":
+        return Case("", ModelFileError, ["not well-formed XML", ":1:"])
+    if name == "not-opensim":
+        text = '<?xml version="1.0"?>\n<mujoco model="m">\n  <worldbody/>\n</mujoco>\n'
+        return Case(text, ModelFileError, ["<mujoco>", "OpenSimDocument"])
+    if name == "unknown-joint":
+        marker = '<JointSet name="jointset">\n\t\t\t<objects>\n'
+        assert marker in base
+        text = base.replace(marker, marker + '\t\t\t\t<FooJoint name="x">\n\t\t\t\t</FooJoint>\n', 1)
+        return Case(text, UnsupportedElementError,
+                    ['<FooJoint name="x">', f"line {line_of(text, '<FooJoint')}", "not an element OpenSim"])
+    if name == "ellipsoid-joint":
+        text = _build_base(tmp_path / "ellipsoid_src.osim", ellipsoid=True)
+        return Case(text, UnsupportedElementError,
+                    ['<EllipsoidJoint name="j1">', f"line {line_of(text, '<EllipsoidJoint')}", "cannot convert"])
+    if name == "scapulothoracic-joint":
+        text = base.replace("<PinJoint ", "<ScapulothoracicJoint ").replace("</PinJoint>", "</ScapulothoracicJoint>")
+        return Case(text, UnsupportedElementError,
+                    ['<ScapulothoracicJoint name="j1">', f"line {line_of(text, '<ScapulothoracicJoint')}",
+                     "cannot convert"])
+    if name == "unknown-function":
+        text = base.replace("<SimmSpline ", "<FooFunction ").replace("</SimmSpline>", "</FooFunction>")
+        return Case(text, UnsupportedElementError,
+                    ["<FooFunction", f"line {line_of(text, '<FooFunction')}"])
+    if name == "bad-joint-socket":
+        sock = "<socket_parent_frame>b1_offset</socket_parent_frame>"
+        assert sock in base
+        text = base.replace(sock, "<socket_parent_frame>no_such_frame</socket_parent_frame>")
+        return Case(text, UnsupportedElementError,
+                    ['<CustomJoint name="knee">', f"line {line_of(text, '<CustomJoint')}", "no_such_frame"])
+    if name == "bad-frame-socket":
+        sock = "<socket_parent>/bodyset/b1</socket_parent>"
+        text = base.replace(sock, "<socket_parent>/bodyset/nobody</socket_parent>", 1)  # j1's child frame
+        tag = '<PhysicalOffsetFrame name="b1_offset">'
+        return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "/bodyset/nobody"])
+    if name == "mass-text":
+        text = base.replace("<mass>2</mass>", "<mass>heavy</mass>")
+        tag = '<Body name="b1">'
+        return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "heavy", "mass"])
+    if name == "inertia-text":
+        old = text_between(base, '<Body name="b2">', "<inertia>", "</inertia>")
+        text = base.replace(f"<inertia>{old}</inertia>", "<inertia>0.02 0.009 abc 0 0 0</inertia>")
+        tag = '<Body name="b2">'
+        return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "abc", "inertia"])
+    raise ValueError(name)
+
+
+def text_between(text: str, after: str, start: str, end: str) -> str:
+    i = text.index(start, text.index(after)) + len(start)
+    return text[i:text.index(end, i)]
+
+
+CASES = ["missing-file", "truncated", "empty", "not-opensim", "unknown-joint", "ellipsoid-joint",
+         "scapulothoracic-joint", "unknown-function", "bad-joint-socket", "bad-frame-socket", "mass-text",
+         "inertia-text"]
+
+
+def _write(case: Case, tmp_path: Path, name: str) -> Path:
+    path = tmp_path / f"{name}.osim"
+    if case.text is not None:
+        path.write_text(case.text)
+    return path
+
+
+def _assert_no_output(tmp_path: Path, out: Path) -> None:
+    """Nothing written: no output folder content (no .xml, no report, no mesh)."""
+    if out.exists():
+        assert not list(out.rglob("*.xml"))
+        assert not any(out.iterdir()), list(out.iterdir())
+    assert not list(tmp_path.glob(".o2m-*")), "staging folder left behind"
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_bad_input_raises(name, base, tmp_path):
+    case = _case(name, base, tmp_path)
+    path = _write(case, tmp_path, name)
+    out = tmp_path / "out"
+    with pytest.raises(case.error) as info:
+        convert(path, out, convert_options())
+    msg = str(info.value)
+    assert isinstance(info.value, O2MError)
+    for s in case.expect:
+        assert s in msg, f"{s!r} not in {msg!r}"
+    _assert_no_output(tmp_path, out)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_error_names_the_file(name, base, tmp_path):
+    """Every message starts with the file the user gave."""
+    case = _case(name, base, tmp_path)
+    path = _write(case, tmp_path, name)
+    with pytest.raises(O2MError) as info:
+        convert(path, tmp_path / "out", convert_options())
+    assert str(info.value).startswith(str(path)), str(info.value)
+
+
+@pytest.mark.parametrize("name", ["truncated", "unknown-joint", "mass-text", "missing-file"])
+def test_bad_input_cli(name, base, tmp_path):
+    case = _case(name, base, tmp_path)
+    path = _write(case, tmp_path, name)
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "o2m", "convert", str(path), "-o", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1, (proc.stdout, proc.stderr)
+    assert proc.stderr.startswith("o2m: error:"), proc.stderr
+    assert "Traceback" not in proc.stderr
+    for s in case.expect:
+        assert s in proc.stderr, f"{s!r} not in {proc.stderr!r}"
+    _assert_no_output(tmp_path, out)
+
+
+def test_failure_keeps_existing_output(base, tmp_path):
+    """A failed conversion into a folder holding an earlier good conversion leaves it as it was."""
+    good = tmp_path / "model.osim"
+    good.write_text(base)
+    out = tmp_path / "out"
+    first = convert(good, out, convert_options())
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    good.write_text(base.replace("<mass>2</mass>", "<mass>heavy</mass>"))
+    with pytest.raises(UnsupportedElementError):
+        convert(good, out, convert_options())
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert after == before and first.xml.exists()
+    assert not list(tmp_path.glob(".o2m-*"))
+
+
+def test_missing_mesh_is_not_an_error(tmp_path):
+    """A mesh file that cannot be found: the model converts, the report lists the mesh."""
+    path = tmp_path / "meshy.osim"
+    _build_base(path, mesh="no_such_bone.vtp")
+    conv = convert(path, tmp_path / "out", convert_options())
+    assert conv.xml.exists()
+    skipped = [s for s in conv.report.skipped if s.element == "Mesh"]
+    assert len(skipped) == 1 and "no_such_bone.vtp" in skipped[0].reason
+    assert any("no_such_bone.vtp" in w for w in conv.report.warnings)
+    assert "no_such_bone.vtp" in (tmp_path / "out" / "meshy.report.txt").read_text()
+    # The CLI succeeds too.
+    proc = subprocess.run([sys.executable, "-m", "o2m", "convert", str(path), "-o", str(tmp_path / "cli")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "cli" / "meshy.xml").exists()

@@ -1,0 +1,204 @@
+"""Muscle paths of the seven bundled models in MuJoCo, measured against OpenSim 4.6.
+
+Asserted: every path force becomes a tendon (muscles also an actuator) of the same name; a path of
+fixed points without wrapping has OpenSim's length to 1e-9 m (up to the recorded knee fits); every
+model simulates 1 s of random muscle excitation without NaN; and the issue's targets over 200
+random poses (length error <= 1 %, moment-arm RMS per pair median <= 0.5 mm, 95th percentile
+<= 2 mm, max <= 5 mm, no MuJoCo length jump in a 1-degree sweep beyond OpenSim's own).
+
+Where a target is not met, the test asserts what the conversion achieves (a bound a little above
+the quick-mode measurement) and names the cause in GAPS; the thresholds themselves stay.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from o2m import models
+from o2m.convert.builder import MjcfBuilder
+from o2m.convert.converter import convert
+from o2m.convert.tendons import CARRIER_ARMATURE, CARRIER_SLOPE_GATE
+from o2m.osim.document import load_document
+from o2m.osim.paths import read_paths
+from o2m.osim.skeleton import SkeletonReader, read_skeleton
+from o2m.validate.muscles import (
+    LEN_PCT,
+    MA_MAX_MM,
+    MA_MEDIAN_MM,
+    MA_P95_MM,
+    compare_muscles,
+    continuous_tendon_front,
+    opensim_length_steps,
+    sweep_jumps,
+)
+from tests.helpers import approximation_budget, convert_options, require_mirror
+
+NAMES = ["tug_of_war", "arm26", "leg6dof9musc", "gait10dof18musc", "gait2354", "gait2392", "mobl_arms_no_wrap"]
+
+#: Measured gaps (quick mode, seed 0, 200 poses): model -> {"len": {muscle: % achieved}, MA fields}.
+#: TRIlong (Arm26): OpenSim's own length steps by -8.05 mm at shoulder elevation 2.524 rad (its
+#: wraps switching), so no continuous tendon can be within 1.22 % of it on both sides there
+#: (asserted in test_length_gaps_are_opensim_steps; 1.06 % at full elbow flexion, where the path
+#: is longest). Its two wraps on one segment (TRIlonghh, TRIlongglen) become a length via point
+#: (o2m.lengthvia) whose designed length keeps within 1.31 % (the floor plus 0.1 %) with a moment
+#: arm 1.91 mm RMS from computeMomentArm (OpenSim's own -dL/dq is 3.2 mm RMS from it there); the
+#: fitted TRIlongglen alone gave 2.70 % and 3.44 mm. MoBL-ARMS against computeMomentArm (p95 3.90, max
+#: 14.6 mm): PECM1-3 and LAT1-3 keep their same-body MovingPathPoint segments (path_forces "auto":
+#: holding them would change their length by 7.6-16.8 %), so they follow OpenSim's -dL/dq, which is
+#: not computeMomentArm there (asserted in test_path_forces_follow_their_choice). No tendon could
+#: do both: within 1 % of OpenSim's length, PECM2/PECM3/LAT2/LAT3 are at least 8.4/10.5/12.4/10.5 mm
+#: RMS from computeMomentArm about shoulder_elv (swept, the rest at defaults; ma_floor, asserted in
+#: test_moment_arm_gaps_are_opensim_inconsistency). (Leg6Dof9Musc and
+#: Gait10dof18musc met their targets once their knee extensors' path-point carriers got extra
+#: joints: moment-arm p95 3.42 -> 0.50 mm and 3.09 -> 0.51 mm.)
+GAPS = {
+    "arm26": {"len": {"TRIlong": 1.4}},
+    "mobl_arms_no_wrap": {"ma_p95": 4.2, "ma_max": 15.0,
+                          "ma_floor": {m: "shoulder_elv" for m in ("PECM2", "PECM3", "LAT2", "LAT3")}},
+}
+#: Measured MuJoCo sweep jumps not met (tendon -> mm): none. (MuJoCo's psoas/iliacus step at hip
+#: flexion -90 and +45 degrees is OpenSim's own, 19.5-22.8 mm, at the same place.)
+JUMP_GAPS: dict[str, dict[str, float]] = {}
+
+
+@pytest.fixture(scope="module", params=NAMES)
+def converted(request, tmp_path_factory):
+    require_mirror()
+    fetched = models.fetch_model_with_geometry(request.param, progress=False)
+    conv = convert(fetched.osim, tmp_path_factory.mktemp(request.param), convert_options(workers=2), geometry_dirs=[fetched.geometry_dir])
+    return request.param, fetched.osim, conv
+
+
+def _plain_paths(osim) -> dict[str, set[str]]:
+    """Paths with only fixed PathPoints and no wrap objects: name -> the bodies of their points."""
+    doc = load_document(osim)
+    skel = read_skeleton(doc)
+    ref = MjcfBuilder(skel).ref
+    return {p.owner: {pt.body for pt in p.points} for p in read_paths(SkeletonReader(doc), ref)
+            if not p.wraps and all(not pt.moving and pt.condition is None for pt in p.points)}
+
+
+def test_every_path_is_a_named_tendon_and_plain_paths_are_exact(converted):
+    name, osim, conv = converted
+    rep = compare_muscles(osim, conv.xml, n_poses=40, seed=3, ma_poses=0)
+    assert not rep.missing_tendons, rep.missing_tendons
+    assert not rep.actuator_issues, rep.actuator_issues
+    plain = _plain_paths(osim)
+    assert plain or name == "mobl_arms_no_wrap"
+    budget = approximation_budget(conv.xml, conv.report.approximations)
+    for muscle, bodies in plain.items():
+        # exact, up to the recorded joint fits above the bodies its points are on (e.g. a knee)
+        allowed = 1e-9 + 2 * sum(budget[b][0] for b in bodies if b in budget)
+        row = rep.muscles[muscle]
+        assert row.max_len <= allowed, f"{name}/{muscle}: {row.max_len * 1e3:.4f} mm > {allowed * 1e3:.4f} mm"
+
+
+def test_issue_targets_over_200_poses(converted):
+    name, osim, conv = converted
+    rep = compare_muscles(osim, conv.xml, n_poses=200, seed=0, ma_poses=50)
+    gap = GAPS.get(name, {})
+    for muscle, e in rep.muscles.items():
+        allowed = gap.get("len", {}).get(muscle, LEN_PCT)
+        assert e.max_len_pct <= allowed, f"{name}/{muscle}: length error {e.max_len_pct:.3g} % > {allowed} %"
+    median, p95, worst = rep.ma_median, rep.ma_p95, rep.ma_max  # against computeMomentArm
+    assert median * 1e3 <= MA_MEDIAN_MM, (name, median)
+    assert p95 * 1e3 <= gap.get("ma_p95", MA_P95_MM), (name, p95)
+    assert worst * 1e3 <= gap.get("ma_max", MA_MAX_MM), (name, worst)
+    # fitted tendons: never worse than their start on the fitting poses
+    for f in conv.report.path_fits:
+        assert f["after"]["objective"] <= f["before"]["objective"]
+
+
+def test_length_gaps_are_opensim_steps(converted):
+    """Every muscle whose length target is given up in GAPS has a step in OpenSim's own length
+    that keeps any continuous tendon further than the target from it (so the 1 % cannot be met)."""
+    name, osim, conv = converted
+    gapped = GAPS.get(name, {}).get("len", {})
+    if not gapped:
+        pytest.skip("no length gap")
+    steps = opensim_length_steps(osim, conv.xml)
+    for muscle in gapped:
+        floor = max((s["floor_pct"] for s in steps if s["path"] == muscle), default=0.0)
+        assert floor > LEN_PCT, (muscle, floor)
+
+
+def test_moment_arm_gaps_are_opensim_inconsistency(converted):
+    """Every (muscle, coordinate) in a model's ``ma_floor`` gap is one where no continuous tendon
+    within the 1 % length target of OpenSim can be within the 5 mm moment-arm target of its
+    computeMomentArm (OpenSim's dynamic moment arm is not the derivative of its length there)."""
+    name, osim, conv = converted
+    floors = GAPS.get(name, {}).get("ma_floor", {})
+    if not floors:
+        pytest.skip("no moment-arm gap from OpenSim's own path")
+    for muscle, coordinate in floors.items():
+        front = continuous_tendon_front(osim, conv.xml, muscle, coordinate, pcts=(LEN_PCT,), n=301)
+        best = front["front"][LEN_PCT]
+        assert best is not None and best["rms"] * 1e3 > MA_MAX_MM, (muscle, coordinate, best)
+
+
+def test_carrier_slides_meet_the_derivative_gate(converted):
+    """Every path-point carrier slide of a non-linear location has a derivative error (a moment-arm
+    error along it) within CARRIER_SLOPE_GATE RMS: a plain quartic where it already is (MoBL-ARMS:
+    DELT2 1.13 mm/rad, BIC 0.57), else extra joints (the knee extensors of the leg and gait
+    models: 2.4-4.1 mm/rad with plain quartics, 0.28-0.48 measured with them), which keep the
+    location within 0.06 mm (plain quartics: 0.46-0.85 mm; measured 0.02-0.05 mm)."""
+    name, osim, conv = converted
+    slides = [a for a in conv.report.approximations if a.element == "MovingPathPoint" and a.slope_rms is not None]
+    for a in slides:
+        assert a.slope_rms <= CARRIER_SLOPE_GATE, (a.joint, a.slope_rms)
+        if "extra joints" in a.what:
+            assert a.slope_rms <= 0.6e-3 and a.max_error <= 6e-5, (a.joint, a.slope_rms, a.max_error)
+
+
+def test_path_forces_follow_their_choice(converted):
+    """A path with a same-body MovingPathPoint segment held ("opensim") has OpenSim's
+    computeMomentArm, one that keeps it ("kinematic") OpenSim's -dL/dq (to 2.6 mm RMS, the
+    other approximations of those paths: measured 0.36 and 2.51 mm on MoBL-ARMS)."""
+    name, osim, conv = converted
+    if not conv.report.path_forces:
+        pytest.skip("no same-body MovingPathPoint segment")
+    rep = compare_muscles(osim, conv.xml, n_poses=40, seed=1, ma_poses=20)
+    for rec in conv.report.path_forces:
+        arms = rep.muscles[rec["path"]].moment_arms
+        worst = max(e.rms if rec["mode"] == "opensim" else e.rms_vs_dldq for e in arms.values())
+        assert worst * 1e3 <= 2.6, (rec["path"], rec["mode"], worst)
+        assert rep.muscles[rec["path"]].max_len_pct <= max(rec["length_error_pct"], 0.0) + 0.5, rec["path"]
+
+
+def test_no_length_jumps_in_a_one_degree_sweep(converted):
+    name, osim, conv = converted
+    sw = sweep_jumps(osim, conv.xml)
+    paths = {n for n, _ in sw["worst"].items()} & set(compare_muscles(osim, conv.xml, n_poses=1, ma_poses=0).muscles)
+    jumps = [j for j in sw["jumps"] if j["tendon"] in paths
+             and j["mujoco"] * 1e3 > JUMP_GAPS.get(name, {}).get(j["tendon"], 0.0)]
+    assert not jumps, jumps[:3]
+
+
+def test_simulates_one_second_of_random_excitation(converted):
+    """No NaN, and every path-point carrier on a world-welded body follows its coordinate: MuJoCo
+    sees its inertia (``dof_invweight0`` at most 1/armature; it took 1e12 from a 1e-12 kg body
+    there) and its joint equalities stay within 0.5 mm (MoBL-ARMS's PECM/LAT carriers were left
+    behind by up to 51 mm before their mass)."""
+    name, osim, conv = converted
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("default-pose").id)
+    carriers = [b for b in range(m.nbody) if m.body(b).name.endswith("_carrier")]
+    static = {b for b in carriers if m.body_weldid[m.body_parentid[b]] == 0}
+    dofs = [m.jnt_dofadr[j] for j in range(m.njnt) if m.jnt_bodyid[j] in carriers]
+    assert np.all(m.dof_invweight0[dofs] <= 1.0 / CARRIER_ARMATURE * (1 + 1e-6)), name
+    eqs = [e for e in range(m.neq) if m.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT
+           and m.jnt_bodyid[m.eq_obj1id[e]] in static]
+    rng = np.random.default_rng(0)
+    excitation = rng.uniform(0, 1, size=m.nu)
+    worst = 0.0
+    for _ in range(int(round(1.0 / m.opt.timestep))):
+        d.ctrl[:] = excitation
+        mujoco.mj_step(m, d)
+        rows = np.flatnonzero((d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & np.isin(d.efc_id, eqs))
+        worst = max(worst, float(np.max(np.abs(d.efc_pos[rows]), initial=0.0)))
+    assert np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel)), name
+    assert np.all(np.isfinite(d.ten_length))
+    assert worst <= 5e-4, (name, worst)

@@ -1,0 +1,110 @@
+"""o2m.force_fit: the fitted force is the force MuJoCo applies, and the fit recovers known muscles."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from o2m.paper.force_fit import ForceFit, ForceSamples, MuscleForceFit, _force, _start, fit_forces, pulling_force
+
+#: A muscle on a fixed tendon of a slide joint, so that the actuator length is the joint position.
+SLIDER = """
+<mujoco>
+  <option timestep="0.002" gravity="0 0 0"/>
+  <worldbody>
+    <body><joint name="x" type="slide" axis="1 0 0" range="0.1 0.4"/><geom size="0.02" mass="1"/></body>
+  </worldbody>
+  <tendon><fixed name="m"><joint joint="x" coef="1"/></fixed></tendon>
+  <actuator><muscle name="m" tendon="m" lengthrange="0.15 0.35" range="0.6 1.3" force="500"
+                    lmin="0.4" lmax="1.8" vmax="2" fpmax="1.2" fvmax="1.3"/></actuator>
+</mujoco>
+"""
+
+
+def _model() -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(SLIDER)
+
+
+def _known() -> MuscleForceFit:
+    return MuscleForceFit("m", 500.0, [0.15, 0.35], [0.55, 1.35], 0.35, 1.7, 2.5, 1.4, 1.1, 0.26,
+                          [800.0, 2e4, 5e5], 30.0, np.nan, np.nan, np.nan, np.nan)
+
+
+def test_applied_model_produces_the_fitted_force():
+    m = ForceFit({"m": _known()}).apply(_model())
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        q, v, a = rng.uniform(0.16, 0.34), rng.uniform(-0.5, 0.5), rng.uniform(0, 1)
+        d.qpos[0], d.qvel[0], d.act[0] = q, v, a
+        mujoco.mj_forward(m, d)
+        pulling = -(d.qfrc_actuator[0] + d.qfrc_passive[0])  # the muscle pulls towards shorter lengths
+        assert pulling == pytest.approx(float(_known().force_at(q, v, a)), rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize("fitted", [False, True])
+def test_pulling_force_is_what_mujoco_applies(fitted):
+    m = ForceFit({"m": _known()}).apply(_model()) if fitted else _model()
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        q, v, a = rng.uniform(0.12, 0.38), rng.uniform(-0.5, 0.5), rng.uniform(0, 1)
+        d.qpos[0], d.qvel[0], d.act[0] = q, v, a
+        mujoco.mj_forward(m, d)
+        assert -(d.qfrc_actuator[0] + d.qfrc_passive[0]) == pytest.approx(float(pulling_force(m, "m", q, v, a)),
+                                                                          rel=1e-9, abs=1e-9)
+
+
+def test_written_mjcf_matches_the_applied_model(tmp_path):
+    src = tmp_path / "in.xml"
+    src.write_text(SLIDER)
+    fit = ForceFit({"m": _known()})
+    written = mujoco.MjModel.from_xml_path(str(fit.write_mjcf(src, tmp_path / "out.xml")))
+    applied = fit.apply(_model())
+    for field in ("actuator_gainprm", "actuator_biasprm", "tendon_stiffness", "tendon_stiffnesspoly",
+                  "tendon_lengthspring", "tendon_damping"):
+        np.testing.assert_allclose(getattr(written, field), getattr(applied, field), rtol=1e-12, err_msg=field)
+
+
+def _samples(truth: MuscleForceFit, n: int, seed: int) -> ForceSamples:
+    rng = np.random.default_rng(seed)
+    L = rng.uniform(0.15, 0.35, n)
+    V = rng.uniform(-0.6, 0.6, n)
+    A = np.clip(rng.uniform(-0.3, 1.0, n), 0, 1)
+    F = truth.force_at(L, V, A)
+    return ForceSamples(["m"], L[:, None], V[:, None], A[:, None], F[:, None], np.arange(n) // 100)
+
+
+def test_fit_recovers_a_known_muscle_from_the_converted_start():
+    model = _model()
+    truth = _known()
+    train = _samples(truth, 1500, 1)
+    fit = fit_forces(model, train, held_out=_samples(truth, 300, 2), processes=1, progress=False).muscles["m"]
+    assert fit.kept
+    assert fit.rms_start > 5.0  # the converted muscle is far from the truth (% of F0)
+    assert fit.rms < 0.05 and fit.rms_held_out < 0.05
+    test = _samples(truth, 500, 3)
+    err = fit.force_at(test.length[:, 0], test.velocity[:, 0], test.activation[:, 0]) - test.force[:, 0]
+    assert np.max(np.abs(err)) / truth.force < 2e-3
+
+
+def test_a_fit_worse_on_held_out_states_keeps_its_start():
+    model = _model()
+    a = model.actuator("m").id
+    x0 = _start(model, a, None)
+    held = _samples(_known(), 300, 5)  # held-out forces that the start explains exactly
+    held.force[:, 0] = _force(x0, 500.0, model.actuator_lengthrange[a], held.length[:, 0], held.velocity[:, 0],
+                              held.activation[:, 0])
+    fit = fit_forces(model, _samples(_known(), 600, 4), held_out=held, processes=1, progress=False).muscles["m"]
+    assert not fit.kept
+    assert fit.rms_held_out == pytest.approx(fit.rms_held_out_start, abs=1e-9) and fit.rms_held_out < 1e-6
+
+
+def test_fit_needs_a_muscle_actuator():
+    xml = SLIDER.replace('<muscle name="m" tendon="m" lengthrange="0.15 0.35" range="0.6 1.3" force="500"\n'
+                         '                    lmin="0.4" lmax="1.8" vmax="2" fpmax="1.2" fvmax="1.3"/>',
+                         '<motor name="m" tendon="m"/>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    with pytest.raises(ValueError, match="not a muscle"):
+        fit_forces(model, _samples(_known(), 100, 0), processes=1, progress=False)
