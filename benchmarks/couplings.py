@@ -3,7 +3,7 @@
     python benchmarks/couplings.py [--models gait2354 leg6dof9musc ...] [--steps 2000]
 
 Converts each model twice: with every skeleton coupling and path-point carrier a plain quartic
-(``COUPLING_TARGET`` and ``CARRIER_SLOPE_GATE`` set to infinity) and as o2m converts it (inner
+(``ConvertOptions(plain_quartics=True)``) and as o2m converts it (inner
 and outer joints where a quartic misses the target or the carrier gate). For each version it
 prints the degrees of freedom (nv), bodies (intermediate bodies that carry a joint's
 translations, ``<body>_couplings``, included), joints and equalities, and the mean ``mj_step``
@@ -19,6 +19,7 @@ or rad.
 from __future__ import annotations
 
 import argparse
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -26,24 +27,21 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from o2m import mjcf, models, tendons
-from o2m.convert import convert
-from o2m.document import load_document
-from o2m.mujoco_sim import welded_at_default_pose
-from o2m.skeleton import read_skeleton
+from o2m import models
+from o2m.convert import ConvertOptions, convert
+from o2m.convert.builder import MjcfBuilder
+from o2m.mj.simulate import welded_at_default_pose
+from o2m.osim.document import load_document
+from o2m.osim.skeleton import read_skeleton
+
+#: The converter's quick wrap-fit sizes, as CI runs it (O2M_QUICK=1).
+QUICK = os.environ.get("O2M_QUICK", "") not in ("", "0")
 
 
 def _convert(name: str, folder: Path, quartic: bool) -> Path:
     fetched = models.fetch_model_with_geometry(name, progress=False)
-    saved, gate = dict(mjcf.COUPLING_TARGET), tendons.CARRIER_SLOPE_GATE
-    if quartic:
-        mjcf.COUPLING_TARGET.update({k: float("inf") for k in saved})
-        tendons.CARRIER_SLOPE_GATE = float("inf")
-    try:
-        return convert(fetched.osim, folder, geometry_dirs=[fetched.geometry_dir]).xml
-    finally:
-        mjcf.COUPLING_TARGET.update(saved)
-        tendons.CARRIER_SLOPE_GATE = gate
+    options = ConvertOptions(plain_quartics=quartic, quick=QUICK)
+    return convert(fetched.osim, folder, options, geometry_dirs=[fetched.geometry_dir]).xml
 
 
 def _step_time(xml: Path, steps: int) -> tuple[float, bool]:
@@ -68,7 +66,7 @@ def _hanging(name: str, xml: Path) -> dict[str, tuple[float, float]]:
     """Per coupled axis: (worst |axis value - OpenSim's function|, worst equality violation)."""
     m, d = welded_at_default_pose(xml, "pelvis")
     fetched = models.fetch_model_with_geometry(name, progress=False)
-    axes, _ = mjcf.MjcfBuilder(read_skeleton(load_document(fetched.osim))).coupled_axes()
+    axes, _ = MjcfBuilder(read_skeleton(load_document(fetched.osim))).coupled_axes()
     names = [m.joint(i).name for i in range(m.njnt)]
     rows = {}
     for a in axes:

@@ -19,8 +19,8 @@ import argparse
 
 import numpy as np
 
-from o2m.mujoco_sim import controls_from_forces, force_driven, initial_state, rollout
-from o2m.paper import DATA_DIR, load_experiment
+from o2m.mj.simulate import controls_from_forces, force_driven, initial_state, rollout
+from o2m.paper.pipeline import DATA_DIR, load_experiment
 
 
 def main() -> None:

@@ -18,16 +18,21 @@ coordinate over its range (``--n`` poses, the other coordinates at their default
 from __future__ import annotations
 
 import argparse
+import os
 import tempfile
 
 import mujoco
 import numpy as np
 
 from o2m import models
-from o2m.convert import convert
-from o2m.lengthvia import outlying_changes
-from o2m.validate import joint_equality_plan, pose_mujoco
-from o2m.validate_muscles import _Pair, continuous_tendon_front
+from o2m.convert import ConvertOptions, convert
+from o2m.mj.posing import joint_equality_plan, pose_mujoco
+from o2m.osim.pair import ModelPair
+from o2m.osim.spikes import outlying_changes
+from o2m.validate import continuous_tendon_front
+
+#: The converter's quick wrap-fit sizes, as CI runs it (O2M_QUICK=1).
+QUICK = os.environ.get("O2M_QUICK", "") not in ("", "0")
 
 
 def main() -> None:
@@ -41,11 +46,12 @@ def main() -> None:
     fetched = models.fetch_model_with_geometry(args.model, progress=False)
     pcts = (1.0, 1.1, 1.2, 1.3, 1.5, 2.0, 3.0)
     with tempfile.TemporaryDirectory() as tmp:
-        xml = convert(fetched.osim, tmp, geometry_dirs=[fetched.geometry_dir], workers=2).xml
+        options = ConvertOptions(quick=QUICK, workers=2)
+        xml = convert(fetched.osim, tmp, options, geometry_dirs=[fetched.geometry_dir]).xml
         front = continuous_tendon_front(fetched.osim, xml, args.muscle, args.coordinate, pcts=pcts, n=args.n)
         m = mujoco.MjModel.from_xml_path(str(xml))
         data, plan, tid = mujoco.MjData(m), joint_equality_plan(m), m.tendon(args.muscle).id
-        pair = _Pair(fetched.osim, xml)
+        pair = ModelPair(fetched.osim, xml)
         l_mj = []
         for q in front["q"]:
             pose_mujoco(m, data, {**pair.defaults, args.coordinate: float(q)}, plan=plan)

@@ -116,64 +116,19 @@ def cmd_dataset(a: argparse.Namespace) -> int:
 
 
 def cmd_paper(a: argparse.Namespace) -> int:
-    """The whole paper: dataset (stored or regenerated), conversion, fit, corrections, speed, figures."""
-    import json
+    """The whole paper (:func:`o2m.paper.reproduce`); prints the measured numbers."""
+    from o2m.paper.reproduce import format_summary, reproduce
 
-    from o2m.paper.dataset import load_dataset, make_dataset
-    from o2m.paper.figures import make_figures
-    from o2m.paper.pipeline import FULL, QUICK, run_paper
-    from o2m.paper.speed import measure_speed
-
-    data = Path(a.data)
-    out = Path(a.out)
-    quick = a.quick
     executor = None
     if a.dask:
         from distributed import Client  # pip install -e .[cluster]
 
         executor = Client(a.dask).get_executor()
         print(f"      OpenSim runs and CMA-ES candidates go to the Dask scheduler at {a.dask}")
-    if a.regenerate_opensim:
-        if quick:
-            data = out / "quick-data"
-        print(f"[1/4] regenerating OpenSim references into {data} ({4 if quick else a.sets} sets)")
-        make_dataset(data, n_sets=4 if quick else a.sets, seed=a.seed, timeout=a.timeout, executor=executor)
-    else:
-        print(f"[1/4] using the stored OpenSim references in {data}")
-    ds = load_dataset(data)
-    print(f"      {len(ds.ok)} sets, {int(ds.ok.sum())} succeeded in OpenSim, failures: "
-          + ("; ".join(f"set {i} {st}: {why[:80]}" for i, st, why in ds.failures()) or "none"))
-    results = out / "quick" / "results" if quick else data / "results"
-    figures = out / "quick" / "figures" if quick else Path(a.figures)
-    print(f"[2/4] converting, fitting parameters ({'quick' if quick else 'full'} mode) and corrective controls")
-    summary = run_paper(data, settings=QUICK if quick else FULL, model_dir=out / "paper", results_dir=results,
-                        refit=a.refit or quick, executor=executor)
-    print("[3/4] timing one 1-s simulation in OpenSim and in MuJoCo")
-    speed = measure_speed(str(data), n_sets=1 if quick else 5, model_dir=str(out / "paper"))
-    speed_file = results.parent / "speed.json"
-    speed_file.write_text(json.dumps(speed, indent=1) + "\n")
-    print(f"[4/4] figures -> {figures}")
-    written = make_figures(results, figures, speed_file=speed_file)
-    e = summary["mean_error_rad"]
+    run = reproduce(a.data, a.out, a.figures, quick=a.quick, regenerate_opensim=a.regenerate_opensim,
+                    refit=a.refit, executor=executor, n_sets=a.sets, seed=a.seed, timeout=a.timeout)
     print()
-    print(f"Mean absolute joint error on {summary['n_test']} test sets (rad): converted {e['converted']:.4f}, "
-          f"muscle forces fitted {e['force_fitted']:.4f}, CMA-ES fitted {e['fitted']:.4f}, "
-          f"with corrections {e['corrected']:.4f}")
-    print(f"  {'DoF':15s} {'converted':>10s} {'forces':>10s} {'CMA-ES':>10s} {'corrected':>10s}")
-    for d, v in summary["per_joint_error_rad"].items():
-        print(f"  {d:15s} {v['converted']:10.4f} {v['force_fitted']:10.4f} {v['fitted']:10.4f} {v['corrected']:10.4f}")
-    mf = summary["muscle_forces"]
-    print(f"Muscle force fit: RMS error {mf['rms_held_out_start']:.2f} -> {mf['rms_held_out']:.2f} % of max isometric "
-          f"force on held-out states ({mf['kept']} of {mf['muscles']} muscles changed)")
-    print(f"Mean absolute correction: {summary['mean_abs_correction']:.4f}")
-    f = summary["fit"]
-    print(f"CMA-ES: training cost {f['cost0']:.4g} -> {f['cost']:.4g} (best seen {f['best_training_cost']:.4g}), "
-          f"validation cost {f['validation_cost0']:.4g} -> {f['validation_cost']:.4g}; {f['generations']} generations, "
-          f"{f['evaluations']} candidates, {f['wall_time_s']:.0f} s")
-    print(f"Fitted model: {summary['fitted_xml']}")
-    print(f"Speed: OpenSim {speed['opensim_median_s']:.2f} s, MuJoCo {speed['mujoco_median_s']:.4f} s per 1-s "
-          f"simulation: {speed['ratio']:.0f}x; batched rollouts {speed['rollout_per_s']:.0f} simulations/s")
-    print(f"{len(written)} figure files in {figures}")
+    print(format_summary(run))
     return 0
 
 
@@ -202,7 +157,7 @@ def cmd_replay(a: argparse.Namespace) -> int:
     import mujoco
 
     from o2m.viz.motion import load_motion, resample_motion
-    from o2m.viz.viewer import animate_qpos
+    from o2m.viz.scene import animate_qpos
 
     model = mujoco.MjModel.from_xml_path(a.xml)
     motion = resample_motion(load_motion(a.motion, model), model, a.fps)

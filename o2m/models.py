@@ -165,12 +165,16 @@ def cache_dir(cache: str | os.PathLike[str] | None = None) -> Path:
     return Path(pooch.os_cache("o2m"))
 
 
-def mirror_dir(mirror: str | os.PathLike[str] | None = None) -> Path | None:
-    """The mirror folder: ``mirror`` if given, else ``$O2M_MODEL_MIRROR``, else None (download)."""
-    if mirror is not None:
-        return Path(mirror).expanduser()
-    env = os.environ.get(MIRROR_ENV)
-    return Path(env).expanduser() if env else None
+def mirror_dir(mirror: str | os.PathLike[str] | None = None) -> Path | str | None:
+    """The mirror: ``mirror`` if given, else ``$O2M_MODEL_MIRROR``, else None (download from the
+    registry's URLs). A mirror is a folder laid out like ``registry.tsv`` or, given as an
+    ``http(s)://`` URL, a server laid out the same way (returned as the URL string)."""
+    value = os.fspath(mirror) if mirror is not None else os.environ.get(MIRROR_ENV)
+    if not value:
+        return None
+    if value.startswith(("http://", "https://")):
+        return value.rstrip("/")
+    return Path(value).expanduser()
 
 
 # --------------------------------------------------------------------------- fetching
@@ -198,7 +202,7 @@ def fetch(path: str, *, mirror: str | os.PathLike[str] | None = None,
     return _fetch_entry(entry, mirror_dir(mirror), cache_dir(cache))
 
 
-def _fetch_entry(entry: Entry, mirror: Path | None, cache: Path) -> Path:
+def _fetch_entry(entry: Entry, mirror: Path | str | None, cache: Path) -> Path:
     target = cache / entry.path
     if target.is_file():
         try:
@@ -214,7 +218,9 @@ def _fetch_entry(entry: Entry, mirror: Path | None, cache: Path) -> Path:
                          f"Set {CACHE_ENV} to a writable folder.") from e
     with tempfile.TemporaryDirectory(dir=target.parent, prefix=".o2m-fetch-") as tmpdir:
         tmp = Path(tmpdir) / target.name
-        if mirror is not None:
+        if isinstance(mirror, str):  # a server laid out like the registry
+            source = _download(Entry(entry.path, entry.sha256, f"{mirror}/{entry.path}"), tmp)
+        elif mirror is not None:
             source = _copy_from_mirror(entry, mirror, tmp)
         else:
             source = _download(entry, tmp)
@@ -275,7 +281,7 @@ def _mismatch(entry: Entry, source: str, got: str) -> FetchError:
         f"version (from {entry.url}).")
 
 
-def _fetch_many(paths: list[str], mirror: Path | None, cache: Path, progress: bool,
+def _fetch_many(paths: list[str], mirror: Path | str | None, cache: Path, progress: bool,
                 desc: str) -> list[Path]:
     registry = get_registry()
     entries = [registry.lookup(p) for p in paths]

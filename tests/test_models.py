@@ -212,3 +212,18 @@ def test_download_from_local_server(cache, mirror, http_server, monkeypatch):
     with pytest.raises(FetchError, match="404"):
         models.fetch("x/gone.txt")
     assert _files(cache) == [cache / SMALL[0]]
+
+
+def test_mirror_can_be_a_server(cache, mirror, http_server, monkeypatch):
+    """O2M_MODEL_MIRROR may be a URL laid out like the registry: files come from <url>/<path>, hash-checked."""
+    root, base = http_server
+    for p in SMALL:
+        (root / p).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(mirror / p, root / p)
+    monkeypatch.setenv(models.MIRROR_ENV, base + "/")
+    assert models.mirror_dir() == base
+    got = models.fetch(SMALL[0])
+    assert models.sha256_of(got) == models.get_registry().lookup(SMALL[0]).sha256
+    (root / SMALL[1]).write_bytes(b"tampered")
+    with pytest.raises(FetchError, match="sha256 mismatch"):
+        models.fetch(SMALL[1])

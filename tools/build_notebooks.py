@@ -2,7 +2,8 @@
 
 The notebooks are thin: every computation is an ``o2m`` call. Editing them here keeps them
 reviewable as code; run ``python tools/build_notebooks.py`` and commit the .ipynb files (stored
-without outputs). ``tests/test_notebooks.py`` executes them in quick mode.
+without outputs). ``tests/integration/test_notebooks.py`` checks they are what this script
+writes and executes them in quick mode.
 """
 
 from __future__ import annotations
@@ -61,10 +62,10 @@ the wrapped model in reasonable time.
 """),
     code('''
 from o2m import models
-from o2m.convert import convert
+from o2m.convert import ConvertOptions, convert
 
 fetched = models.fetch_model_with_geometry("mobl_arms_no_wrap", progress=False)
-result = convert(fetched.osim, OUT / "mobl_arms", geometry_dirs=[fetched.geometry_dir])
+result = convert(fetched.osim, OUT / "mobl_arms", ConvertOptions(quick=QUICK), geometry_dirs=[fetched.geometry_dir])
 print(result.xml)
 print(f"converted in {result.report.seconds:.1f} s")'''),
     md("""
@@ -93,7 +94,7 @@ print(kin.summary())'''),
 moment arms. The plot shows a moment arm against the elbow angle in both simulators.
 """),
     code('''
-from o2m.validate_muscles import compare_muscles, plot_moment_arms
+from o2m.validate import compare_muscles, plot_moment_arms
 
 mus = compare_muscles(fetched.osim, result.xml, n_poses=10 if QUICK else 200, seed=0)
 print(mus.summary()[:3000])'''),
@@ -107,13 +108,13 @@ plt.tight_layout(); plt.show()'''),
     md("""
 ## The model in 3-D
 
-`o2m.viewer` draws the converted model with meshcat: bones, muscle paths coloured by activation,
+`o2m.viz` draws the converted model with meshcat: bones, muscle paths coloured by activation,
 markers. The scene is exported to a self-contained HTML file, shown here in a frame (drag to
 rotate, scroll to zoom).
 """),
     code('''
 import mujoco
-from o2m.viewer import notebook_iframe, show_pose
+from o2m.viz import notebook_iframe, show_pose
 
 model = mujoco.MjModel.from_xml_path(str(result.xml))
 html = OUT / "mobl_arms_scene.html"
@@ -137,7 +138,7 @@ first-order activation dynamics. A seed makes the sets reproducible.
 """),
     code(PARAMETERS),
     code('''
-from o2m.dataset import load_dataset
+from o2m.paper import load_dataset
 
 ds = load_dataset(DATA)
 sets = ds.activations
@@ -201,7 +202,7 @@ paper's `setup_fd.xml`). In quick mode we simulate only the first 0.1 s.
     code('''
 import numpy as np
 from o2m import models
-from o2m.opensim_sim import IntegratorSettings, read_initial_state, simulate
+from o2m.osim import IntegratorSettings, read_initial_state, simulate
 
 i = ds.test[0]
 n = 51 if QUICK else len(ds.times)
@@ -214,14 +215,14 @@ print("max difference from the stored run (rad):", np.abs(run.coordinates[:, col
     md("## The same set in MuJoCo"),
     code('''
 import time
-from o2m.mujoco_sim import rollout
+from o2m.mj import rollout
 
 t0 = time.perf_counter()
 tr = rollout(exp.model, exp.init[[i]], exp.controls[[i]], joint_names=exp.dofs)
 print(f"1 s simulated in {time.perf_counter() - t0:.3f} s; diverged: {bool(tr.diverged[0])}")'''),
     code('''
 import matplotlib.pyplot as plt
-from o2m.figures import overlay
+from o2m.paper.figures import overlay
 
 overlay(ds.times, exp.dofs, exp.reference[i], {"MuJoCo (converted)": tr.coordinates[0]}, f"test set {i}")
 plt.show()
@@ -249,7 +250,7 @@ beige, with OpenSim's muscle paths); the other is MuJoCo's. Muscle paths are col
 activation (blue 0, red 1). Press play in the meshcat controls (Animations).
 """),
     code('''
-from o2m.viewer import notebook_iframe, side_by_side
+from o2m.viz import notebook_iframe, side_by_side
 
 step = 50 if QUICK else 10  # a frame every 0.1 s (quick) or 20 ms, played in real time
 html = OUT / "side_by_side.html"
@@ -308,7 +309,7 @@ for f in worst:
     md("One test set, the muscle the fit helped most: OpenSim's tendon force against MuJoCo's at the same states."),
     code("""
 import matplotlib.pyplot as plt
-from o2m.force_fit import pulling_force, sample_states
+from o2m.paper.force_fit import pulling_force, sample_states
 
 ds = exp.dataset
 i = ds.test[0]
@@ -331,7 +332,7 @@ The objective is the squared joint error (rad²) averaged over time and summed o
 training sets, plus a small penalty on moving parameters far (in log10 units) from their start.
 """),
     code("""
-from o2m.fitting import BOUNDS, PENALTY, TrajectoryObjective, fit_cma, load_fit, parameter_space
+from o2m.paper.fitting import BOUNDS, PENALTY, TrajectoryObjective, fit_cma, load_fit, parameter_space
 
 space = parameter_space(fitted_forces, exp.dofs, exp.muscles)
 print(len(space), "parameters; penalty weight", PENALTY)
@@ -378,7 +379,7 @@ NOTEBOOKS["05_corrective_controls.ipynb"] = [
 Even a fitted model drifts from OpenSim. The paper asks how small a change of the excitations
 makes MuJoCo follow OpenSim: per muscle, a correction shaped as a cubic spline with knots every
 0.1 s (10 Hz) is added to the reference excitation (and clipped to [0, 1]). The corrections
-minimise the joint error plus an L2 penalty on their size. `o2m.corrections` optimises the
+minimise the joint error plus an L2 penalty on their size. `o2m.paper.corrections` optimises the
 spline coefficients block by block in time with CMA-ES, in several passes over the blocks (each
 pass revisits a block after the later ones have moved), and keeps a block only if it lowers the
 whole trajectory's cost. It starts from the better of no correction and the correction that,
@@ -388,9 +389,9 @@ recorded (o2m's addition: the dataset keeps those forces).
     code(PARAMETERS),
     code('''
 import numpy as np
-from o2m.corrections import PENALTY, fit_corrections
-from o2m.fitting import load_fit
-from o2m.force_fit import ForceFit
+from o2m.paper.corrections import PENALTY, fit_corrections
+from o2m.paper.fitting import load_fit
+from o2m.paper.force_fit import ForceFit
 from o2m import paper
 from o2m.paper import correction_start, fitted_model, load_experiment
 
@@ -412,7 +413,7 @@ print("mean absolute joint error (rad):", dict(zip(exp.dofs, res.joint_mae0.roun
 print(f"mean absolute correction: {np.abs(res.correction).mean():.4f}")'''),
     code('''
 import matplotlib.pyplot as plt
-from o2m.figures import overlay
+from o2m.paper.figures import overlay
 
 t = exp.dataset.times
 top = np.argsort(-np.abs(res.correction).mean(0))[:6]
@@ -422,7 +423,7 @@ for m in top:
     ax.plot(t, res.excitations[:, m], color=line.get_color(), label=exp.muscles[m])
 ax.set_xlabel("time (s)"); ax.set_ylabel("excitation"); ax.set_title("reference (dashed) and corrected")
 ax.legend(fontsize=7); plt.show()
-from o2m.mujoco_sim import rollout
+from o2m.mj import rollout
 base = rollout(model, exp.init[[i]], exp.controls[[i]], joint_names=exp.dofs).coordinates[0]
 overlay(t, exp.dofs, exp.reference[i], {"fitted": base, "fitted + corrections": res.coordinates}, f"test set {i}")
 plt.show()'''),
@@ -433,7 +434,7 @@ NOTEBOOKS["06_figures.ipynb"] = [
 # 6. The paper's figures
 
 Every figure is redrawn from stored results (`data/mobl_arms/results/`, `data/mobl_arms/speed.json`)
-by `o2m.figures.make_figures`; nothing is simulated here. `python -m o2m paper` recomputes the
+by `o2m.paper.figures.make_figures`; nothing is simulated here. `python -m o2m paper` recomputes the
 results (`--quick` for a small version in minutes).
 """),
     code(PARAMETERS),
@@ -457,7 +458,7 @@ print(json.dumps(summary["mean_error_rad"], indent=1))
 print("mean absolute correction:", round(summary["mean_abs_correction"], 4))'''),
     code('''
 from IPython.display import Image, display
-from o2m.figures import make_figures
+from o2m.paper.figures import make_figures
 
 target = OUT / "figures" if QUICK else ROOT / "figures"
 written = make_figures(results, target, speed_file=speed_file)
@@ -467,15 +468,23 @@ for p in written:
 ]
 
 
-def main() -> None:
-    HERE.mkdir(exist_ok=True)
+def build(folder: Path = HERE) -> list[Path]:
+    """Write every notebook into ``folder`` (without outputs); returns the files written."""
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
     for name, cells in NOTEBOOKS.items():
         for k, cell in enumerate(cells):
             cell.id = f"{Path(name).stem[:2]}-{k:02d}"  # stable ids: a rebuild changes only what changed
         nb = new_notebook(cells=cells, metadata={"kernelspec": {"name": "python3", "display_name": "Python 3",
                                                                 "language": "python"}})
-        nbformat.write(nb, HERE / name)
-        print("wrote", HERE / name)
+        nbformat.write(nb, folder / name)
+        written.append(folder / name)
+    return written
+
+
+def main() -> None:
+    for path in build():
+        print("wrote", path)
 
 
 if __name__ == "__main__":

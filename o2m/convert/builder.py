@@ -1,6 +1,6 @@
-"""Building the MuJoCo model (an ``mujoco.MjSpec``) from a :class:`~o2m.skeleton.Skeleton`.
+"""Building the MuJoCo model (an ``mujoco.MjSpec``) from a :class:`~o2m.osim.skeleton.Skeleton`: bodies and joints.
 
-How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the canonical form):
+How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.osim.skeleton` for the canonical form):
 
 * The MuJoCo body is the OpenSim body: same name, same frame. Its fixed ``pos``/``quat`` is
   the OpenSim transform at the reference pose (every coordinate at its default value), so
@@ -16,46 +16,59 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.skeleton` for the cano
   deviation of the driving coordinate from its reference value). When ``f`` is not linear,
   the quartic is fitted over the coordinate's range and its worst error is recorded; when that
   quartic misses :data:`COUPLING_TARGET`, the axis also gets extra joints of the same body on
-  the same axis (inner joints, quartics of the coordinate, and outer joints, quartics of an
-  inner joint), whose values add to the axis's, fitted with the coordinate's other coupled
-  axes by :func:`o2m.functions.fit_couplings` within MuJoCo's 6 degrees of freedom per body.
-  Where a body would need more, its joint's slides (main and extra joints) go on an
+  the same axis, planned by :mod:`o2m.convert.coupling_plan`. Where a body would need more than
+  MuJoCo's 6 degrees of freedom, its joint's slides (main and extra joints) go on an
   intermediate body ``<body>_couplings`` (1e-12 kg, no geometry) between the parent and the
   body, at the body's reference frame, and the hinges stay on the body: translations along the
   parent frame's axes come first in a CustomJoint, so the two compose as one joint. The report's
   notes name each such body.
 * CoordinateCouplerConstraints become joint equalities the same way.
-* Joints added by other builders (path-point carriers, :mod:`o2m.tendons`) can be planned the
-  same way (:meth:`MjcfBuilder.plan_extra_couplings`); every coupling's approximation records
-  the errors of its value and of its derivative (d joint / d coordinate).
+* Joints added by other builders (path-point carriers, :mod:`o2m.convert.carriers`) can be
+  planned the same way (:meth:`MjcfBuilder.plan_extra_couplings`); every coupling's approximation
+  records the errors of its value and of its derivative (d joint / d coordinate).
 * A locked coordinate, and every axis or coupled coordinate that depends only on locked
   coordinates, is folded into the fixed body transforms at its default value: exact, and
   stiffer in simulation than a soft MuJoCo equality would be. It then has no MuJoCo joint.
-* OpenSim ground (Y-up) maps to MuJoCo's world (Z-up) by :data:`o2m.transforms.OSIM_TO_MJ`.
+* OpenSim ground (Y-up) maps to MuJoCo's world (Z-up) by :data:`o2m.transforms.OSIM_TO_MJ`;
+  angles are radians, lengths metres.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import mujoco
 import numpy as np
 from lxml import etree
 
-from o2m.convert import geometry
-from o2m.osim.functions import (
-    COUPLING_GAIN,
-    AxisFit,
-    CouplingFit,
-    fit_couplings,
-    fit_polynomial,
-    polynomial_slope_errors,
+from o2m.convert.coordinates import (
+    Driver,
+    as_linear,
+    choose_coordinate_axes,
+    coordinate_drivers,
+    fit_range,
+    is_fixed,
+    relative,
 )
-from o2m.osim.skeleton import Joint, Skeleton, Skipped, TransformAxis
-from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat, quat_to_matrix
+from o2m.convert.coupling_plan import (
+    COUPLING_SLOPE_TARGET,
+    COUPLING_TARGET,
+    MAX_BODY_DOFS,
+    CoupledAxis,
+    ExtraJoint,
+    PlannedAxis,
+    added_inertia,
+    extra_armature,
+    plan_group,
+    plan_skeleton,
+    planned_axes,
+    planned_coupling,
+    quartic_coupling,
+)
+from o2m.convert.couplings import AxisFit, CouplingFit
+from o2m.mj import mjcf_text
+from o2m.osim.skeleton import Joint, Skeleton, TransformAxis
+from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat
 
 #: Mass (kg) and principal inertia (kg m²) given to massless moving bodies, which MuJoCo rejects.
 MIN_MASS = 1e-8
@@ -66,52 +79,11 @@ MIN_INERTIA = 1e-12
 #: (0.02 s, 0.9..0.95) allows. OpenSim's constraints are exact.
 EQUALITY_SOLREF = (0.004, 1.0)
 EQUALITY_SOLIMP = (0.999, 0.999, 0.001, 0.5, 2.0)
-#: Range over which a coupling with an unbounded driving coordinate is fitted (rad or m).
-UNBOUNDED_FIT_RANGE = {"rotation": (-np.pi, np.pi), "translation": (-1.0, 1.0)}
-#: Samples used to decide whether a function is linear over a range.
-_LINEAR_SAMPLES = 401
-#: Worst error a skeleton coupling (a coupled transform axis or a coupler) is fitted to, per
-#: unit: 0.01 mm and 0.005 deg, a tenth of the skeleton's 0.1 mm / 0.05 deg budget. A plain
-#: quartic within it stays a plain quartic; otherwise the coordinate's coupled axes get inner
-#: and outer joints (:func:`o2m.functions.fit_couplings`) until they are within it, until more
-#: joints stop helping, or until their bodies are full (:data:`MAX_BODY_DOFS`).
-COUPLING_TARGET = {"m": 1e-5, "rad": float(np.deg2rad(0.005))}
-#: Derivative target of a skeleton coupling (per unit of the axis, per unit of its coordinate), or
-#: None: fitted to the value only (see :func:`o2m.functions.fit_couplings`'s ``slope_targets``).
-#: A knee translation's derivative error is a moment-arm error of every knee muscle. None,
-#: measured: with 2e-4 m/rad on the slides, Gait10dof18musc's knee translations reach 0.69 and
-#: 0.51 mm/rad worst (1.16 and 1.44 fitted to the value) for 0.041 mm (0.035) and its
-#: hamstrings' and gastrocnemius' moment-arm RMS falls from 0.24-0.32 to 0.19-0.24 mm (p95 of all
-#: pairs 0.51 -> 0.50 mm); but Leg6Dof9Musc's plan changes (no intermediate bodies: 40 -> 33 dofs)
-#: and its patella translations miss 0.1 mm (0.13 and 0.22 mm at 2e-4 and 1e-4 m/rad).
-COUPLING_SLOPE_TARGET: dict[str, float | None] = {"m": None, "rad": None}
-#: Skeleton couplings with extra joints are also fitted this fraction of their coordinate's range
-#: beyond each end, with :data:`o2m.functions.COUPLING_MARGIN_SLACK` times the error allowed
-#: there: a joint pressing into a soft limit leaves its range a little (Leg6Dof9Musc's knee,
-#: swinging into its limit, went 0.026 rad past it), and a degree-16 fit of the range alone
-#: leaves the spline fast (0.8 mm 0.05 rad beyond a knee's range). Farther out the extra
-#: joints diverge much faster than a plain quartic: keep such coordinates within their range.
-COUPLING_MARGIN = 0.02
-#: Degrees of freedom MuJoCo allows one body ("more than 6 dofs in body" otherwise).
-MAX_BODY_DOFS = 6
-#: A coordinate's couplings are planned with a joint's translations and rotations on bodies of
-#: their own (:meth:`MjcfBuilder._couplings_body`) when that brings the worst error, relative to
-#: :data:`COUPLING_TARGET`, below this fraction of what the joints fit on one body reach.
-COUPLING_SPLIT_GAIN = 0.5
 #: Mass (kg) and principal inertia (kg m²) of an intermediate body carrying a joint's
 #: translations: just above what MuJoCo accepts, so the model's mass and centre of mass stay
 #: OpenSim's. Its slides move the OpenSim body hanging from it, so their inertia is that body's.
 COUPLINGS_BODY_MASS = 1e-12
 COUPLINGS_BODY_INERTIA = 1e-14
-#: Armature of each extra joint of a coupled axis, as a multiple of its main joint's own inertia
-#: at the reference pose (the mass, or moment of inertia about the axis, of everything the joint
-#: moves). Several joints along one axis of one body make the mass matrix singular without
-#: armature, and an armature much lighter than the body makes their equalities soft: in
-#: Gait2354 hanging under gravity, 0.01 kg let the knee translations sag 0.2 mm off their
-#: equalities, the body's own inertia (5.3 kg) 0.01 mm, as the plain quartic's single joint.
-#: The extra joints move a few millimetres (or a few hundredths of a radian) over their
-#: coordinate's range, so this adds little to the coordinate's inertia (the report gives it).
-COUPLING_ARMATURE = 1.0
 
 
 @dataclass
@@ -153,110 +125,37 @@ class BuildResult:
     approximations: list[Approximation] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
-
-@dataclass
-class _CoupledAxis:
-    """A skeleton axis (or coupled coordinate) that a non-linear function of a coordinate moves."""
-
-    name: str  # its MuJoCo joint
-    body: str
-    kind: str  # "hinge" or "slide"
-    base: str  # the independent coordinate driving it
-    rel: Callable[[np.ndarray], np.ndarray]  # its value minus its reference value, of the base's value
-
-    @property
-    def units(self) -> str:
-        return "rad" if self.kind == "hinge" else "m"
+#: A complement joint's armature, as a fraction of its coordinate joint's own inertia: enough to
+#: keep the mass matrix regular, small beside what the coordinate moves.
+COMPLEMENT_ARMATURE = 0.01
 
 
-@dataclass
-class _PlannedAxis:
-    """One coupled axis of a coordinate's :class:`~o2m.functions.CouplingFit`."""
-
-    fit: CouplingFit
-    index: int  # the axis's index in the fit
-    axes: list[_CoupledAxis]  # every axis of the fit, in order
-    inner_names: list[str]  # the fit's inner joints, in order
-    lo: float
-    hi: float
-    #: armature (kg or kg m²) of each extra joint, set when planned (path-point carriers); None:
-    #: set by :meth:`MjcfBuilder._set_extra_armature` once the skeleton is built
-    armature: float | None = None
-
-
-def _inner_names(fit: CouplingFit, group: list[_CoupledAxis]) -> list[str]:
-    """The MuJoCo names of a fit's inner joints: ``<host joint>_inner<k>``."""
-    counts: dict[str, int] = {}
-    names = []
-    for h in fit.hosts:
-        counts[group[h].name] = counts.get(group[h].name, 0) + 1
-        names.append(f"{group[h].name}_inner{counts[group[h].name]}")
-    return names
-
-
-def _extra_slopes(planned: _PlannedAxis, x: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, int]]:
-    """d joint / d coordinate at x of every extra joint of a coordinate's plan, by name, and the
-    inner joint (index) each outer joint is driven by."""
-    poly = np.polynomial.polynomial
-    fit = planned.fit
-    inner = fit.inner_values(x)
-    dinner = [poly.polyval(x - fit.x0, poly.polyder(c)) for c in fit.inners]
-    slopes: dict[str, np.ndarray] = {}
-    driver: dict[str, int] = {}
-    for i, a in enumerate(planned.axes):
-        for n, (k, c) in enumerate(fit.axes[i].outers):
-            name = f"{a.name}_outer{n + 1}"
-            slopes[name] = poly.polyval(inner[k], poly.polyder(c)) * dinner[k]
-            driver[name] = k
-    for k, name in enumerate(planned.inner_names):
-        slopes[name] = dinner[k]
-    return slopes, driver
-
-
-def _linear(fn: Callable[[np.ndarray], np.ndarray], lo: float, hi: float) -> tuple[float, float] | None:
-    """(slope, intercept) when ``fn`` is linear on [lo, hi] to 1e-12 (relative), else None."""
-    x = np.linspace(lo, hi, _LINEAR_SAMPLES)
-    y = np.asarray(fn(x), dtype=float)
-    if hi - lo < 1e-15:
-        return 0.0, float(y[0])
-    slope = (y[-1] - y[0]) / (hi - lo)
-    icpt = y[0] - slope * lo
-    scale = max(1.0, float(np.max(np.abs(y))))
-    if np.max(np.abs(y - (slope * x + icpt))) <= 1e-12 * scale:
-        return float(slope), float(icpt)
-    return None
-
-
-class _Driver:
-    """An independent coordinate and a function of it: the value of a coordinate or an axis."""
-
-    def __init__(self, base: str, fn: Callable[[np.ndarray], np.ndarray]):
-        self.base, self.fn = base, fn
-
-    def then(self, f: Callable[[np.ndarray], np.ndarray]) -> _Driver:
-        inner = self.fn
-        return _Driver(self.base, lambda x: f(inner(x)))
-
-
-def _relative(driver: _Driver, ref: float) -> Callable[[np.ndarray], np.ndarray]:
-    """x -> driver.fn(x) - ref: a joint's value relative to its reference value."""
-    return lambda x: np.asarray(driver.fn(np.asarray(x, dtype=float)), dtype=float) - ref
+def _rest(fn, q: np.ndarray) -> np.ndarray:
+    """f(q) - q: what a complement joint adds to its coordinate's joint on the same axis."""
+    q = np.asarray(q, dtype=float)
+    return np.asarray(fn(q), dtype=float) - q
 
 
 class MjcfBuilder:
-    """Builds an ``MjSpec`` from a skeleton; :func:`add_geometry` adds its geometry after."""
+    """Builds an ``MjSpec`` from a skeleton; :func:`o2m.convert.visuals.add_geometry` adds its geometry after."""
 
     def __init__(self, skel: Skeleton, *, plan_couplings: bool = True):
         self.skel = skel
         #: Whether skeleton couplings get extra joints (:meth:`_plan_couplings`); else plain quartics.
         self.plan_couplings = plan_couplings
+        #: Coordinate -> (its complement joint, the axis), for coordinates that reach their axes
+        #: only through functions (:meth:`_add_complement`).
+        self._complements: dict[str, tuple[str, TransformAxis]] = {}
+        #: Coupling fits of this conversion by their inputs' digest: the same spline on two
+        #: sides (left and right knee) is fitted once.
+        self.fit_cache: dict = {}
         self.doc = skel.document
         self.spec = mujoco.MjSpec()
         self.result = BuildResult(self.spec)
-        self.drivers = self._coordinate_drivers()
-        self.ref = {name: float(np.asarray(d.fn(np.array([self._base_ref(d.base)])))[0])
+        self.drivers = coordinate_drivers(skel)
+        self.ref = {name: float(np.asarray(d.fn(np.array([skel.coordinates[d.base].default])))[0])
                     for name, d in self.drivers.items()}
-        self.coord_joint: dict[str, tuple[Joint, TransformAxis]] = self._choose_coordinate_axes()
+        self.coord_joint: dict[str, tuple[Joint, TransformAxis]] = choose_coordinate_axes(skel, self.drivers)
         self.bodies: dict[str, mujoco.MjsBody] = {"ground": self.spec.worldbody}
         self._order: list[Joint] | None = None
         #: Each body's frame in OpenSim ground at the reference pose.
@@ -270,55 +169,13 @@ class MjcfBuilder:
         #: The extra joints of each coupled joint, by its name.
         self._extras_of: dict[str, list[str]] = {}
         #: The fitted couplings of the skeleton's coupled axes, by MuJoCo joint name.
-        self._planned: dict[str, _PlannedAxis] = {}
+        self._planned: dict[str, PlannedAxis] = {}
         #: Bodies whose joint's translations go on an intermediate body: (slides, hinges) they get.
         self._split: dict[str, tuple[int, int]] = {}
         #: Each intermediate body made for couplings, by its OpenSim body.
         self.couplings_bodies: dict[str, str] = {}
 
     # -- coordinates -------------------------------------------------------------------
-    def _base_ref(self, name: str) -> float:
-        return self.skel.coordinates[name].default
-
-    def _coordinate_drivers(self) -> dict[str, _Driver]:
-        """Each coordinate as a function of an independent coordinate (couplers resolved)."""
-        couplers = {c.dependent: c for c in self.skel.couplers}
-        drivers: dict[str, _Driver] = {}
-
-        def resolve(name: str, seen: tuple[str, ...]) -> _Driver:
-            if name in drivers:
-                return drivers[name]
-            if name in seen:
-                raise self.doc.error(couplers[name].element, "is part of a circular chain of couplers")
-            cp = couplers.get(name)
-            if cp is None:
-                d = _Driver(name, lambda x: np.asarray(x, dtype=float))
-            else:
-                d = resolve(cp.independent, seen + (name,)).then(cp.function)
-            drivers[name] = d
-            return d
-
-        for name in self.skel.coordinates:
-            resolve(name, ())
-        return drivers
-
-    def _choose_coordinate_axes(self) -> dict[str, tuple[Joint, TransformAxis]]:
-        chosen: dict[str, tuple[Joint, TransformAxis]] = {}
-        for joint in self.skel.joints:
-            for ax in joint.translations + joint.rotations:
-                c = ax.coordinate
-                if c is None or c in chosen or self.is_fixed(ax):
-                    continue
-                if self._is_identity(ax, *self.fit_range(c, ax.kind)):
-                    chosen[c] = (joint, ax)
-        for name, coord in self.skel.coordinates.items():
-            if name not in chosen and self.drivers[name].base == name and not coord.locked:
-                users = [j for j in self.skel.joints if any(a.coordinate == name for a in j.rotations + j.translations)]
-                if users:
-                    raise self.doc.error(coord.element, "drives no transform axis through the identity function, so "
-                                         "no MuJoCo joint can carry its value; o2m cannot convert this coordinate")
-        return chosen
-
     def coordinate_values(self, changes: dict[str, float] | None = None) -> dict[str, float]:
         """Every coordinate's value with independent coordinates at the reference pose except
         ``changes``; dependent coordinates follow their couplers."""
@@ -337,19 +194,11 @@ class MjcfBuilder:
 
     def is_fixed(self, ax: TransformAxis) -> bool:
         """True when the axis does not move: no coordinate, or it depends on a locked coordinate only."""
-        return ax.coordinate is None or self.skel.coordinates[self.drivers[ax.coordinate].base].locked
-
-    @staticmethod
-    def _is_identity(ax: TransformAxis, lo: float, hi: float) -> bool:
-        lin = _linear(ax.function, lo, hi)
-        return lin is not None and abs(lin[0] - 1.0) < 1e-12 and abs(lin[1]) < 1e-12
+        return is_fixed(self.skel, self.drivers, ax)
 
     def fit_range(self, name: str, kind: str) -> tuple[float, float]:
-        lo, hi = self.skel.coordinates[name].range
-        ulo, uhi = UNBOUNDED_FIT_RANGE[kind]
-        if hi - lo > 1e3:  # OpenSim writes ±99999.9 for "no range"
-            lo, hi = ulo, uhi
-        return float(lo), float(hi)
+        """The range coordinate ``name``'s couplings are fitted over (:func:`o2m.convert.coordinates.fit_range`)."""
+        return fit_range(self.skel, name, kind)
 
     # -- the tree ----------------------------------------------------------------------
     def _ordered_joints(self) -> list[Joint]:
@@ -395,6 +244,7 @@ class MjcfBuilder:
             if c.locked:
                 self.result.notes.append(f"locked coordinate '{c.name}' folded into fixed transforms at {c.default:g}")
         self._set_extra_armature()
+        self._set_complement_armature()
         for marker in self.skel.markers:
             body = self.bodies[marker.body]
             pos = marker.position if marker.body != "ground" else OSIM_TO_MJ @ marker.position
@@ -402,7 +252,7 @@ class MjcfBuilder:
             self.exact[("site", marker.name)] = {"pos": pos}
         return self.result
 
-    def _axis_driver(self, ax: TransformAxis) -> _Driver:
+    def _axis_driver(self, ax: TransformAxis) -> Driver:
         return self.drivers[ax.coordinate].then(ax.function)
 
     def _add_joint(self, joint: Joint) -> None:
@@ -479,7 +329,7 @@ class MjcfBuilder:
         is_coord = self.coord_joint.get(ax.coordinate, (None, None))[1] is ax
         return (ax.coordinate if is_coord else f"{joint.name}_{ax.name}"), is_coord
 
-    def coupled_axes(self) -> tuple[list[_CoupledAxis], dict[tuple[str, str], int]]:
+    def coupled_axes(self) -> tuple[list[CoupledAxis], dict[tuple[str, str], int]]:
         """Every moving skeleton axis that a non-linear function of an independent coordinate
         drives (transform axes and coupled coordinates), in build order; and each body's number
         of moving axes of each kind, by (body, "slide" or "hinge")."""
@@ -488,8 +338,10 @@ class MjcfBuilder:
         for joint in self._ordered_joints():
             moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
             moving = [(ax, kind) for ax, kind in moving if not self.is_fixed(ax)]
+            complements = [(ax, k) for ax, k in moving if self._mj_joint_name(joint, ax)[1]
+                           and self.coord_joint[ax.coordinate].form == "complement"]  # a second joint each
             for kind in ("slide", "hinge"):
-                dofs[joint.child, kind] = sum(k == kind for _, k in moving)
+                dofs[joint.child, kind] = sum(k == kind for _, k in moving + complements)
             for ax, kind in moving:
                 name, is_coord = self._mj_joint_name(joint, ax)
                 if is_coord and self.drivers[ax.coordinate].base == ax.coordinate:
@@ -499,10 +351,10 @@ class MjcfBuilder:
                 if base not in self.coord_joint:
                     continue  # couple() reports it
                 ref = ax.value(q0)
-                lo, hi = self._coupling_range(base)
-                rel = _relative(driver, ref)
-                if _linear(rel, lo, hi) is None:
-                    out.append(_CoupledAxis(name, joint.child, kind, base, rel))
+                lo, hi = self.coupling_range(base)
+                rel = relative(driver, ref)
+                if as_linear(rel, lo, hi) is None:
+                    out.append(CoupledAxis(name, joint.child, kind, base, rel))
         return out, dofs
 
     def coupling_fit(self, joint: str) -> AxisFit | None:
@@ -511,80 +363,37 @@ class MjcfBuilder:
         planned = self._planned.get(joint)
         return None if planned is None else planned.fit.axes[planned.index]
 
-    def _coupling_range(self, base: str) -> tuple[float, float]:
+    def coupling_range(self, base: str) -> tuple[float, float]:
         """Where a coupling driven by coordinate ``base`` is fitted: its range, with its reference."""
         lo, hi = self.fit_range(base, self.coord_joint[base][1].kind)
         return min(lo, self.ref[base]), max(hi, self.ref[base])
 
     def _plan_couplings(self) -> None:
-        """Fit every coordinate's non-linear skeleton couplings together (they may share inner
-        joints) and choose their joints, within :data:`MAX_BODY_DOFS` per body; then choose the
-        joints whose translations get a body of their own (:meth:`_couplings_body`).
-
-        Each coordinate is planned first with every body's joints on that body
-        (:meth:`_plan_group`). When an axis then still misses :data:`COUPLING_TARGET`, it is planned
-        again with a joint's translations and its rotations counted apart, each within
-        :data:`MAX_BODY_DOFS` (an intermediate body would then carry the translations), and
-        that plan is kept when its worst error relative to the target is below
-        :data:`COUPLING_SPLIT_GAIN` times the first plan's. A joint whose body then has more
-        than :data:`MAX_BODY_DOFS` is split."""
+        """Plan every coordinate's non-linear skeleton couplings (:func:`o2m.convert.coupling_plan.plan_skeleton`,
+        each axis weighed by its main joint's own inertia) and the joints whose translations get a
+        body of their own (:meth:`_couplings_body`)."""
         axes, dofs = self.coupled_axes()
-        by_base: dict[str, list[_CoupledAxis]] = {}
-        for a in axes:
-            by_base.setdefault(a.base, []).append(a)
         weights = self._main_inertias([a.name for a in axes]) if axes else {}
-        used: dict[tuple[str, str], int] = {}  # extra joints planned so far, per (body, joint kind)
-        for base, group in by_base.items():
-            lo, hi = self._coupling_range(base)
+        ranges = {a.base: self.coupling_range(a.base) for a in axes}
+        planned, split = plan_skeleton(axes, dofs, weights, ranges, self.ref, targets=COUPLING_TARGET,
+                                       slope_targets=COUPLING_SLOPE_TARGET, cache=self.fit_cache)
+        self._planned.update(planned)
+        self._split.update(split)
 
-            def room(split: bool, group=group) -> tuple[list[object], dict[object, int]]:
-                keys: list[object] = [(a.body, a.kind) if split else a.body for a in group]
-                free = {}
-                for a, key in zip(group, keys, strict=True):
-                    kinds = (a.kind,) if split else ("slide", "hinge")
-                    free[key] = MAX_BODY_DOFS - sum(dofs.get((a.body, k), 0) + used.get((a.body, k), 0) for k in kinds)
-                return keys, free
-
-            weight = [weights.get(a.name, 1.0) for a in group]
-            slopes = [COUPLING_SLOPE_TARGET[a.units] for a in group]
-            slopes = None if all(v is None for v in slopes) else [math.inf if v is None else v for v in slopes]
-
-            def worst_of(f: CouplingFit, group=group, slopes=slopes) -> float:
-                return max(max(ax.max_error / COUPLING_TARGET[a.units], ax.slope_error / slopes[i] if slopes else 0.0)
-                           for i, (ax, a) in enumerate(zip(f.axes, group, strict=True)))
-
-            best = self._plan_group(group, *room(False), lo, hi, weight, slope_targets=slopes)
-            worst = worst_of(best)
-            if worst > 1:
-                split = self._plan_group(group, *room(True), lo, hi, weight, slope_targets=slopes)
-                split_worst = worst_of(split)
-                if split_worst < COUPLING_SPLIT_GAIN * worst:
-                    best = split
-            for i, a in enumerate(group):
-                used[a.body, a.kind] = used.get((a.body, a.kind), 0) + best.extra_joints(i)
-            inner_names = _inner_names(best, group)
-            for i, a in enumerate(group):
-                self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi)
-        for body in {b for b, _ in dofs}:
-            total = sum(dofs.get((body, k), 0) + used.get((body, k), 0) for k in ("slide", "hinge"))
-            if total > MAX_BODY_DOFS:
-                self._split[body] = (dofs.get((body, "slide"), 0) + used.get((body, "slide"), 0),
-                                     dofs.get((body, "hinge"), 0) + used.get((body, "hinge"), 0))
-
-    def plan_extra_couplings(self, group: list[_CoupledAxis], keys: list[object], room: dict[object, int], *,
+    def plan_extra_couplings(self, group: list[CoupledAxis], keys: list[object], room: dict[object, int], *,
                              targets: list[float], slope_targets: list[float] | None,
                              armature: float) -> CouplingFit:
         """Plan couplings beyond a quartic for axes that callers outside this class add (path-point
         carriers): the axes ``group`` of one coordinate, all equally heavy, axis i's extra joints
         counted against ``room[keys[i]]``, fitted to ``targets`` and ``slope_targets`` as
-        :meth:`_plan_group` does. Each joint then follows its plan when :meth:`couple` is called
-        with ``high_order=True`` after :meth:`register_joint`; every extra joint gets ``armature``."""
-        lo, hi = self._coupling_range(group[0].base)
-        best = self._plan_group(group, keys, room, lo, hi, [1.0] * len(group), targets, slope_targets,
-                                cheaper_too=True)
-        inner_names = _inner_names(best, group)
-        for i, a in enumerate(group):
-            self._planned[a.name] = _PlannedAxis(best, i, group, inner_names, lo, hi, armature)
+        :func:`~o2m.convert.coupling_plan.plan_group` does. Each joint then follows its plan when
+        :meth:`couple` is called with ``high_order=True`` after :meth:`register_joint`; every extra
+        joint gets ``armature``."""
+        base = group[0].base
+        lo, hi = self.coupling_range(base)
+        best = plan_group(group, keys, room, lo, hi, self.ref[base], [1.0] * len(group), targets, slope_targets,
+                          cheaper_too=True, cache=self.fit_cache)
+        self._planned.update(planned_axes(best, group, lo, hi, armature))
         return best
 
     def register_joint(self, name: str, body: mujoco.MjsBody, jtype: mujoco.mjtJoint, axis: np.ndarray,
@@ -597,102 +406,6 @@ class MjcfBuilder:
         """The records of the extra joints :meth:`couple` made for ``joint`` (a caller outside
         this class lists them after the joint's own), once."""
         return self._extra_records.pop(joint, [])
-
-    def _plan_group(self, group: list[_CoupledAxis], keys: list[object], room: dict[object, int],
-                    lo: float, hi: float, weight: list[float], targets: list[float] | None = None,
-                    slope_targets: list[float] | None = None, cheaper_too: bool = False) -> CouplingFit:
-        """The coupling fit of one coordinate's coupled axes ``group``, axis i's extra joints
-        counted against ``room[keys[i]]`` (the degrees of freedom left where they would go).
-
-        MuJoCo softens a joint equality by the sum of its two joints' inverse weights
-        (``dof_invweight0``, whatever their units), so an inner joint needs at least the
-        armature of the outer joints it drives (:meth:`_set_extra_armature`): an outer slide of
-        the tibia driven by an inner hinge of the light patella sagged 1.5 mm under the tibia's
-        weight. That costs little on a slide, which moves millimetres (6 kg on a knee's inner
-        slide adds 1e-5 kg m² to the knee), but much on a hinge, which moves a tenth of a radian:
-        so an axis drives outer joints only from inner slides or from inner hinges of axes at
-        least as heavy (``weight``: each main joint's own inertia, :meth:`_main_inertias`).
-
-        Start (when a plain quartic misses :data:`COUPLING_TARGET`): one inner joint on the
-        heaviest axis that misses and has room (the most room on ties) and one outer joint for
-        each axis that misses, worst first, while there is room. Then, while an axis still misses
-        and has room: a new inner joint on it with an outer joint (two joints), else an outer
-        joint of an inner joint it has none of yet (one joint); kept only if that axis's error
-        drops below COUPLING_GAIN times what it was and no axis of the coordinate gets worse than
-        the worst was.
-
-        ``targets`` (default :data:`COUPLING_TARGET` by unit) and ``slope_targets`` (derivative
-        targets, None: the value only): an axis misses when its value error exceeds its target
-        or its derivative error its slope target, by the larger ratio (the fits are then
-        derivative-aware, :func:`o2m.functions.fit_couplings`). With ``cheaper_too``, an axis whose
-        new inner/outer pair is not kept tries an outer joint of an inner joint it has none of yet
-        before it is given up (path-point carriers; the skeleton's plans stay as they were)."""
-        room = dict(room)
-
-        def may_use(i: int, host: int) -> bool:
-            return group[host].kind == "slide" or weight[host] >= (1 - 1e-6) * weight[i]
-
-        x0 = self.ref[group[0].base]
-        fns = [a.rel for a in group]
-        if targets is None:
-            targets = [COUPLING_TARGET[a.units] for a in group]
-
-        def fit(uses, hosts, start=()):
-            return fit_couplings(fns, lo, hi, x0, targets=targets, uses=uses, hosts=hosts, start_shapes=start,
-                                 margin=COUPLING_MARGIN, slope_targets=slope_targets)
-
-        def ratios(f: CouplingFit) -> list[float]:
-            if slope_targets is None:
-                return [ax.max_error / tg for ax, tg in zip(f.axes, targets, strict=True)]
-            return [max(ax.max_error / tg, ax.slope_error / st)
-                    for ax, tg, st in zip(f.axes, targets, slope_targets, strict=True)]
-
-        best = fit([[] for _ in group], [])
-        uses: list[list[int]] = [[] for _ in group]
-        hosts: list[int] = []
-        missing = sorted((i for i, r in enumerate(ratios(best)) if r > 1), key=lambda i: -ratios(best)[i])
-        candidates = [i for i in missing if room[keys[i]] >= 1]
-        if candidates:
-            need = {b: sum(keys[i] == b for i in missing) for b in room}
-            heaviest = max(weight[i] for i in candidates)
-            candidates = [i for i in candidates if weight[i] >= (1 - 1e-6) * heaviest]
-            host = max(candidates, key=lambda i: room[keys[i]] - need[keys[i]])  # the worst on ties
-            hosts.append(host)
-            room[keys[host]] -= 1
-            for i in missing:
-                if room[keys[i]] >= 1 and may_use(i, host):
-                    uses[i].append(0)
-                    room[keys[i]] -= 1
-            if any(uses):
-                best = fit(uses, hosts)
-            else:
-                hosts = []
-        done: set[int] = set()
-        while hosts:
-            r = ratios(best)
-            order = sorted((i for i in range(len(group)) if r[i] > 1 and i not in done), key=lambda i: -r[i])
-            moves: list[tuple[int, list[int], int, int]] = []
-            for i in order:
-                b = keys[i]
-                if room[b] >= 2:
-                    moves.append((i, [*hosts, i], len(hosts), 2))
-                unused = [k for k in range(len(hosts)) if k not in uses[i] and may_use(i, hosts[k])]
-                if room[b] >= 1 and unused:
-                    moves.append((i, hosts, unused[0], 1))
-                if moves:
-                    break
-            if not moves:
-                break
-            for i, new_hosts, k, cost in moves if cheaper_too else moves[:1]:
-                new_uses = [list(u) + ([k] if j == i else []) for j, u in enumerate(uses)]
-                trial = fit(new_uses, new_hosts, best.shapes)
-                if ratios(trial)[i] <= COUPLING_GAIN * r[i] and max(ratios(trial)) <= max(r):
-                    best, uses, hosts = trial, new_uses, list(new_hosts)
-                    room[keys[i]] -= cost
-                    break
-            else:
-                done.add(i)
-        return best
 
     def _main_inertias(self, joints: list[str]) -> dict[str, float]:
         """Each of ``joints``' own inertia (kg or kg m², the diagonal of the mass matrix) at the
@@ -710,13 +423,39 @@ class MjcfBuilder:
         dofs = {j: int(m.jnt_dofadr[m.joint(j).id]) for j in joints}
         return {j: float(inertia[k, k]) for j, k in dofs.items()}
 
+    def _set_complement_armature(self) -> None:
+        """Give each complement joint :data:`COMPLEMENT_ARMATURE` times its coordinate joint's own
+        inertia at the reference pose as armature (the two share an axis, so without it the mass
+        matrix is singular) and record what that adds to the coordinate's inertia at most
+        (armature times the largest (f'(q) - 1)² over the coordinate's range)."""
+        if not self._complements:
+            return
+        try:
+            m = self.spec.compile()
+        except ValueError:
+            return  # the conversion's own compile reports what is wrong
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        inertia = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, inertia)
+        for coord, (name, ax) in self._complements.items():
+            dof = int(m.jnt_dofadr[m.joint(coord).id])
+            armature = COMPLEMENT_ARMATURE * max(float(inertia[dof, dof] - m.dof_armature[dof]), MIN_INERTIA)
+            self.spec.joint(name).armature = armature
+            lo, hi = self.coupling_range(coord)
+            q = np.linspace(lo, hi, 401)
+            slope = np.gradient(np.asarray(ax.function(q), dtype=float), q) - 1.0
+            unit = "kg m^2" if ax.kind == "rotation" else "kg"
+            self.result.approximations.append(Approximation(
+                "Coordinate", coord, f"armature of complement joint '{name}' (shares the coordinate joint's axis)",
+                float(armature * np.max(slope**2)), unit, f"armature {armature:.3g} {unit}"))
+
     def _set_extra_armature(self) -> None:
-        """Give every extra joint of a coupled axis :data:`COUPLING_ARMATURE` times the main
-        joint's own inertia at the reference pose (the skeleton compiled as built so far), and
-        an inner joint at least the largest armature of the outer joints it drives (MuJoCo
-        softens their equalities by the inner joint's inverse weight; see :meth:`_plan_group`).
-        Add to each axis's approximation how much its extra joints add to the inertia of its
-        coordinate at most: Σ armature (d joint / d coordinate)² over the coordinate's range."""
+        """Give every extra joint of a coupled axis its armature
+        (:func:`~o2m.convert.coupling_plan.extra_armature`: a multiple of the main joint's own
+        inertia at the reference pose, the skeleton compiled as built so far) and add to each
+        axis's approximation how much its extra joints add to the inertia of its coordinate at
+        most."""
         mains = self._extras_of
         if not mains:
             return
@@ -728,33 +467,23 @@ class MjcfBuilder:
         mujoco.mj_forward(m, d)
         inertia = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, inertia)
-        armature: dict[str, float] = {}
-        for main, recs in mains.items():
+        own = {}
+        for main in mains:
             dof = int(m.jnt_dofadr[m.joint(main).id])
-            for name in recs:
-                armature[name] = COUPLING_ARMATURE * float(inertia[dof, dof] - m.dof_armature[dof])
-        slopes: dict[str, np.ndarray] = {}  # each extra joint's d joint / d coordinate over the range
-        for planned in {id(p.axes): p for p in self._planned.values()}.values():  # each coordinate's once
-            own, driver = _extra_slopes(planned, np.linspace(planned.lo, planned.hi, 2001))
-            slopes.update(own)
-            driven = [0.0] * planned.fit.n_inner  # the largest armature of each inner joint's outer joints
-            for name, k in driver.items():
-                driven[k] = max(driven[k], armature[name])
-            for k, name in enumerate(planned.inner_names):
-                armature[name] = max(armature[name], driven[k])
+            own[main] = float(inertia[dof, dof] - m.dof_armature[dof])
+        armature, added = extra_armature(self._planned, mains, own)
         for name, value in armature.items():
             self.spec.joint(name).armature = value
         approx = {a.joint: a for a in self.result.approximations if a.joint}
         for main, recs in mains.items():
             planned = self._planned[main]
-            added = float(np.max(sum(armature[n] * slopes[n] ** 2 for n in recs)))
             a = approx.get(main)
             if a is not None:
                 unit = "kg" if m.jnt_type[m.joint(main).id] == mujoco.mjtJoint.mjJNT_SLIDE else "kg m^2"
                 base = planned.axes[planned.index].base
                 coord_unit = "kg m^2" if self.coord_joint[base][1].kind == "rotation" else "kg"
                 arms = ", ".join(f"{armature[n]:.3g}" for n in recs)
-                a.detail += f"; armature {arms} {unit}, adding at most {added:.3g} {coord_unit} to '{base}'"
+                a.detail += f"; armature {arms} {unit}, adding at most {added[main]:.3g} {coord_unit} to '{base}'"
 
     def _set_inertial(self, body: mujoco.MjsBody, joint: Joint) -> None:
         b = self.skel.bodies[joint.child]
@@ -794,30 +523,67 @@ class MjcfBuilder:
 
     def _add_mj_joint(self, body: mujoco.MjsBody, joint: Joint, ax: TransformAxis, kind: str,
                       axis: np.ndarray, pos: np.ndarray, ref: float) -> None:
+        """Add the MuJoCo joint of a moving axis (value ``ref`` at the reference pose): its
+        coordinate's joint, or a joint driven by an equality. A coordinate's joint on a mirrored
+        axis turns about the reversed axis; on an axis with any other function it is complemented
+        by a second joint on the same axis (:class:`~o2m.convert.coordinates.CoordinateAxis`)."""
         coord = self.skel.coordinates[ax.coordinate]
         name, is_coord = self._mj_joint_name(joint, ax)
+        unit = axis / np.linalg.norm(axis)
+        if not is_coord:
+            rec = self._new_mj_joint(body, name, kind, unit, pos, ref, joint, ax, None)
+            self.couple(rec, self._axis_driver(ax), ref, ax.element, high_order=True)
+            self._close_joint(rec)
+            return
+        form = self.coord_joint[coord.name]
+        joint_ref = ref if form.form == "identity" else self.ref[coord.name]  # the joint carries q itself
+        if form.form == "mirrored":
+            unit = -unit
+        rec = self._new_mj_joint(body, name, kind, unit, pos, joint_ref, joint, ax, coord.name)
+        if form.form != "identity":
+            rec.relation = f"coordinate ({form.form})"
+        self.exact[("joint", name)]["range"] = np.array(coord.range)
+        mj = self.spec.joint(name)
+        mj.range = list(coord.range)
+        clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
+        mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE
+        if self.drivers[coord.name].base != coord.name:
+            self.couple(rec, self.drivers[coord.name], joint_ref, coord.element, high_order=True)
+        self._close_joint(rec)
+        if form.form == "complement":
+            self._add_complement(body, joint, ax, kind, unit, pos, ref - joint_ref)
+
+    def _new_mj_joint(self, body: mujoco.MjsBody, name: str, kind: str, unit: np.ndarray, pos: np.ndarray,
+                      ref: float, joint: Joint, ax: TransformAxis, coordinate: str | None) -> JointRecord:
         if name in self._joint_frames or any(r.name == name for r in self.result.joints):
             raise self.doc.error(ax.element, f"would make a second MuJoCo joint named '{name}'")
         jtype = mujoco.mjtJoint.mjJNT_SLIDE if kind == "slide" else mujoco.mjtJoint.mjJNT_HINGE
-        mj = body.add_joint(name=name, type=jtype,
-                            axis=axis / np.linalg.norm(axis), pos=pos, ref=ref)
-        rec = JointRecord(name, kind, joint.name, ax.name, coord.name if is_coord else None, None, "coordinate")
-        self.exact[("joint", name)] = {"axis": axis / np.linalg.norm(axis), "pos": pos, "ref": ref}
-        self._joint_frames[name] = (body, jtype, axis / np.linalg.norm(axis), pos)
-        if is_coord:
-            self.exact[("joint", name)]["range"] = np.array(coord.range)
-        if is_coord:
-            mj.range = list(coord.range)
-            clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
-            mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE
-            if self.drivers[coord.name].base != coord.name:
-                self.couple(rec, self.drivers[coord.name], ref, coord.element, high_order=True)
-        else:
-            self.couple(rec, self._axis_driver(ax), ref, ax.element, high_order=True)
-        self.result.joints.append(rec)
-        self.result.joints.extend(self._extra_records.pop(name, []))
+        body.add_joint(name=name, type=jtype, axis=unit, pos=pos, ref=ref)
+        self.exact[("joint", name)] = {"axis": unit, "pos": pos, "ref": ref}
+        self._joint_frames[name] = (body, jtype, unit, pos)
+        return JointRecord(name, kind, joint.name, ax.name, coordinate, None, "coordinate")
 
-    def couple(self, rec: JointRecord, driver: _Driver, ref: float, source: etree._Element, *,
+    def _close_joint(self, rec: JointRecord) -> None:
+        self.result.joints.append(rec)
+        self.result.joints.extend(self._extra_records.pop(rec.name, []))
+
+    def _add_complement(self, body: mujoco.MjsBody, joint: Joint, ax: TransformAxis, kind: str, unit: np.ndarray,
+                        pos: np.ndarray, ref: float) -> None:
+        """The joint that turns (slides) axis ``ax`` by f(q) - q after its coordinate's joint turned
+        it by q: right after it, on the same axis and anchor, so the two add to f(q)."""
+        coord = ax.coordinate
+        name = f"{joint.name}_{ax.name}"
+        rec = self._new_mj_joint(body, name, kind, unit, pos, ref, joint, ax, None)
+        self.spec.joint(name).armature = COMPLEMENT_ARMATURE  # until _set_complement_armature scales it
+        self.couple(rec, self.drivers[coord].then(lambda q, fn=ax.function: _rest(fn, q)), ref, ax.element)
+        self._close_joint(rec)
+        self._complements[coord] = (name, ax)
+        self.result.notes.append(
+            f"coordinate '{coord}' reaches axis {joint.name}/{ax.name} only through a function f: joint '{coord}' "
+            f"moves that axis by q and joint '{name}' by f(q) - q, so '{coord}' still carries the coordinate's value")
+
+
+    def couple(self, rec: JointRecord, driver: Driver, ref: float, source: etree._Element, *,
                high_order: bool = False) -> None:
         """Drive MuJoCo joint ``rec`` (value = driver.fn(base)) from the base coordinate's joint.
 
@@ -837,76 +603,37 @@ class MjcfBuilder:
         base_kind = self.coord_joint[base][1].kind
         lo, hi = self.fit_range(base, base_kind)
         lo, hi = min(lo, base_ref), max(hi, base_ref)
-        rel = _relative(driver, ref)
-        lin = _linear(rel, lo, hi)
+        rel = relative(driver, ref)
+        lin = as_linear(rel, lo, hi)
         units = "rad" if rec.kind == "hinge" else "m"
         base_units = "rad" if base_kind == "rotation" else "m"
-        slope_units = f"{units}/{base_units}"
-        extra: list[tuple[str, str, np.ndarray, str]] = []
+        extra: list[ExtraJoint] = []
         planned = self._planned.get(rec.name) if high_order else None
         if lin is not None:
             slope, icpt = lin
             coef = np.array([icpt + slope * base_ref, slope, 0.0, 0.0, 0.0])
             rec.relation = "linear"
         elif planned is None:
-            fit = fit_polynomial(rel, lo, hi, base_ref, degree=4, exact_at_x0=True)
-            coef = np.asarray(fit.coef, dtype=float)
+            coef, fields = quartic_coupling(rel, lo, hi, base_ref, rec.name, base, units, base_units)
             rec.relation = "quartic fit"
-            s_max, s_rms = polynomial_slope_errors(rel, coef, lo, hi, base_ref)
-            self.result.approximations.append(Approximation(
-                source.tag, source.get("name", rec.name),
-                f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]",
-                float(fit.max_error), units, f"rms {fit.rms_error:.3g} {units}; slope error {s_max:.3g} "
-                f"(rms {s_rms:.3g}) {slope_units}", joint=rec.name, slope_error=s_max, slope_rms=s_rms,
-                slope_units=slope_units))
+            self.result.approximations.append(Approximation(source.tag, source.get("name", rec.name), **fields))
         else:
-            cfit, ax = planned.fit, planned.fit.axes[planned.index]
-            coef = np.asarray(ax.main, dtype=float)
-            rec.relation = "quartic fit"
-            what = f"MuJoCo joint '{rec.name}' follows '{base}' by a quartic fitted over [{lo:.4g}, {hi:.4g}]"
-            detail = f"rms {ax.rms_error:.3g} {units}; slope error {ax.slope_error:.3g} (rms {ax.slope_rms:.3g}) " \
-                     f"{slope_units}"
-            extra = self._extra_joints(rec, planned)
-            if extra:
-                rec.relation = f"quartic fit + {len(extra)} extra joints"
-                what = (f"MuJoCo joint '{rec.name}' and its extra joints {', '.join(e[0] for e in extra)} follow "
-                        f"'{base}' by a {cfit.structure(planned.index)}, fitted over [{lo:.4g}, {hi:.4g}]"
-                        + (f" to {ax.target:.3g} {units} and a slope error of {ax.slope_target:.3g} {slope_units}"
-                           if np.isfinite(ax.slope_target) else ""))
-                margin = planned.fit.margin
-                detail += (f"; a plain quartic: {ax.quartic_error:.3g} {units}, slope error "
-                           f"{ax.quartic_slope_error:.3g} (rms {ax.quartic_slope_rms:.3g}) {slope_units}; up to "
-                           f"{margin:.3g} {base_units} beyond the range: {ax.margin_error:.3g} {units}; the extra "
-                           f"joints move through at most {ax.amplitude:.3g} {units}")
-            self.result.approximations.append(Approximation(
-                source.tag, source.get("name", rec.name), what, float(ax.max_error), units, detail, joint=rec.name,
-                slope_error=float(ax.slope_error), slope_rms=float(ax.slope_rms), slope_units=slope_units))
+            coef, extra, fields = planned_coupling(planned, rec.name, base, lo, hi, units, base_units)
+            rec.relation = f"quartic fit + {len(extra)} extra joints" if extra else "quartic fit"
+            self.result.approximations.append(Approximation(source.tag, source.get("name", rec.name), **fields))
         rec.driven_by = base
         self._equality(rec.name, base, coef, f"{rec.name}_from_{base}")
         if extra:
             self._add_extra_joints(rec, extra, source, planned.armature)
             if planned.armature is not None:  # planned with its armature: what it adds to the coordinate, now
-                x = np.linspace(planned.lo, planned.hi, 2001)
-                slopes = _extra_slopes(planned, x)[0]
-                added = float(np.max(sum(planned.armature * slopes[e[0]] ** 2 for e in extra)))
+                added = added_inertia(planned, [e[0] for e in extra])
                 coord_unit = "kg m^2" if base_kind == "rotation" else "kg"
                 unit = "kg" if rec.kind == "slide" else "kg m^2"
                 self.result.approximations[-1].detail += (
                     f"; armature {planned.armature:.3g} {unit} each, adding at most {added:.3g} {coord_unit} to "
                     f"'{base}'")
 
-    def _extra_joints(self, rec: JointRecord, planned: _PlannedAxis) -> list[tuple[str, str, np.ndarray, str]]:
-        """The extra joints of coupled joint ``rec``: (name, driving joint, equality
-        coefficients, role) for each inner joint it carries (``<joint>_inner<k>``, driven by the
-        coordinate) and each outer joint (``<joint>_outer<k>``, driven by an inner joint)."""
-        fit, i = planned.fit, planned.index
-        base = planned.axes[i].base
-        out = [(planned.inner_names[k], base, fit.inners[k], "inner") for k in range(fit.n_inner) if fit.hosts[k] == i]
-        out += [(f"{rec.name}_outer{n + 1}", planned.inner_names[k], c, "outer")
-                for n, (k, c) in enumerate(fit.axes[i].outers)]
-        return out
-
-    def _add_extra_joints(self, rec: JointRecord, extra: list[tuple[str, str, np.ndarray, str]],
+    def _add_extra_joints(self, rec: JointRecord, extra: list[ExtraJoint],
                           source: etree._Element, armature: float | None = None) -> None:
         """Add ``extra`` right after joint ``rec`` on its body, with its type, axis and anchor (so
         that their values add to its value), and their equalities. Each extra joint is 0 at the
@@ -935,111 +662,12 @@ class MjcfBuilder:
         eq.solimp = list(EQUALITY_SOLIMP)
         self.exact[("equality", name)] = {"polycoef": np.asarray(coef, dtype=float)}
 
+
     def restore_precision(self, xml: str) -> str:
-        """MJCF text with every number o2m computed written in full (17 significant digits).
+        """MJCF text with every number o2m computed for the bodies, joints, sites and joint
+        equalities written in full (:func:`o2m.mj.mjcf_text.restore_tree_numbers`).
 
         MuJoCo's writer prints about 6 digits, which alone would put 1e-6 m errors into the
         skeleton and can break the inertia triangle inequality of a borderline body.
         """
-        root = etree.fromstring(xml.encode())
-        for el in root.iter("body", "joint", "site"):
-            name = el.get("name")
-            tag = "equality" if el.getparent().tag == "equality" else el.tag
-            vals = self.exact.get((tag, name))
-            if vals is None:
-                continue
-            for attr, v in vals.items():
-                el.set(attr, _num(v))
-            if el.tag == "body" and ("inertial", name) in self.exact:
-                inertial = el.find("inertial")
-                if inertial is None:  # MuJoCo's writer leaves out tiny inertials
-                    inertial = etree.Element("inertial")
-                    el.insert(0, inertial)
-                for attr in ("quat", "diaginertia", "fullinertia"):
-                    inertial.attrib.pop(attr, None)
-                for attr, v in self.exact[("inertial", name)].items():
-                    inertial.set(attr, _num(v))
-        return etree.tostring(root, encoding="unicode", pretty_print=True)
-
-
-def _num(v) -> str:
-    return " ".join(f"{float(x):.17g}" for x in np.atleast_1d(np.asarray(v, dtype=float)))
-
-
-def add_geometry(result: BuildResult, skel: Skeleton, bodies: dict[str, mujoco.MjsBody], mesh_dir: Path,
-                 search_dirs: list[Path]) -> list[Skipped]:
-    """Add the skeleton's attached geometry as visual geoms; meshes are written to ``mesh_dir`` as STL.
-
-    Returns what was left out (missing mesh files, decorations without a MuJoCo twin).
-    """
-    spec = result.spec
-    skipped: list[Skipped] = []
-    meshes: dict[tuple[str, tuple[float, ...]], str] = {}
-    used_names: set[str] = set()
-    mesh_dir.mkdir(parents=True, exist_ok=True)
-
-    def unique(name: str) -> str:
-        out, k = name, 1
-        while out in used_names:
-            out, k = f"{name}_{k}", k + 1
-        used_names.add(out)
-        return out
-
-    for g in skel.geometry:
-        el = g.element
-        body = bodies[g.body]
-        to_world = Transform(OSIM_TO_MJ) if g.body == "ground" else Transform()
-        if el.tag == "Mesh":
-            fname = (el.findtext("mesh_file") or "").strip()
-            scale = tuple(float(v) for v in (el.findtext("scale_factors") or "1 1 1").split())
-            src = geometry.find_geometry_file(fname, search_dirs) if fname else None
-            if src is None:
-                skipped.append(Skipped("Mesh", el.get("name", fname), f"mesh file '{fname}' not found in "
-                                       f"{', '.join(str(d) for d in search_dirs)}"))
-                continue
-            key = (str(src), scale)
-            if key not in meshes:
-                asset = unique(Path(fname).stem)
-                stl = mesh_dir / f"{asset}.stl"
-                try:
-                    geometry.write_stl(stl, geometry.read_mesh(src), scale=scale)
-                except ValueError as exc:  # a mesh with no surface (lines only)
-                    used_names.discard(asset)
-                    skipped.append(Skipped("Mesh", el.get("name", fname), f"mesh file '{fname}' has no surface: {exc}"))
-                    continue
-                spec.add_mesh(name=asset, file=f"{mesh_dir.name}/{stl.name}",
-                              inertia=mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL)
-                meshes[key] = asset
-            x = to_world @ g.frame
-            body.add_geom(name=unique(el.get("name") or meshes[key]), type=mujoco.mjtGeom.mjGEOM_MESH,
-                          meshname=meshes[key], pos=x.pos, quat=matrix_to_quat(x.rot),
-                          contype=0, conaffinity=0, group=1, density=0,
-                          rgba=_rgba(el))
-            continue
-        why: list[str] = []
-        prim = geometry.analytic_geom(el, why)
-        if prim is None:
-            skipped.append(Skipped(el.tag, el.get("name", ""), "; ".join(why) or "no MuJoCo twin"))
-            continue
-        x = to_world @ g.frame @ Transform(quat_to_matrix(prim.quat), prim.pos)
-        gtype = getattr(mujoco.mjtGeom, f"mjGEOM_{prim.type.upper()}")
-        body.add_geom(name=unique(el.get("name") or el.tag.lower()), type=gtype,
-                      size=prim.size, pos=x.pos, quat=matrix_to_quat(x.rot), contype=0, conaffinity=0, group=1,
-                      density=0, rgba=prim.rgba if prim.rgba is not None else [0.8, 0.8, 0.8, 1])
-    return skipped
-
-
-def _rgba(el) -> list[float]:
-    app = el.find("Appearance")
-    rgba = [0.89, 0.85, 0.79, 1.0]  # bone
-    if app is not None:
-        col = app.findtext("color")
-        if col:
-            rgba[:3] = [float(v) for v in col.split()[:3]]
-        op = app.findtext("opacity")
-        if op:
-            rgba[3] = float(op)
-        vis = app.findtext("visible")
-        if vis is not None and vis.strip().lower() == "false":
-            rgba[3] = 0.0
-    return rgba
+        return mjcf_text.restore_tree_numbers(xml, self.exact)

@@ -18,16 +18,19 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from lxml import etree
 
 from o2m.convert import forces
-from o2m.convert.builder import Approximation, MjcfBuilder, add_geometry
+from o2m.convert.builder import Approximation, MjcfBuilder
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.muscles import fit_muscles
+from o2m.convert.pathforces import PATH_FORCE_MODES
 from o2m.convert.report import ConversionReport
-from o2m.convert.tendons import PATH_FORCE_MODES, add_paths, restore_geom_precision, tendon_length_ranges
+from o2m.convert.tendons import add_paths, tendon_length_ranges
+from o2m.convert.visuals import add_geometry
 from o2m.convert.wrapfit import apply_fits, fit_paths
+from o2m.convert.wraps import restore_geom_precision
 from o2m.errors import O2MError
+from o2m.mj import mjcf_text
 from o2m.osim.document import load_document
 from o2m.osim.paths import MUSCLE_TYPES, read_paths, read_wrap_objects
 from o2m.osim.skeleton import SkeletonReader, Skipped, read_skeleton
@@ -59,6 +62,9 @@ class ConvertOptions:
             ``"kinematic"``; see :mod:`o2m.convert.tendons`). The report records each choice.
         quick: the wrap fits' small sizes (:data:`o2m.convert.wrapfit.QUICK`), for tests and CI.
         workers: processes for the wrap fits (None: every core).
+        plain_quartics: every coupling (skeleton splines, moving path points) one quartic joint
+            equality, without the extra joints that bring it within its target: fewer degrees
+            of freedom, larger recorded errors (``benchmarks/couplings.py`` compares both).
     """
 
     fit_mechanics: bool = True
@@ -67,6 +73,7 @@ class ConvertOptions:
     path_forces: str = "auto"
     quick: bool = False
     workers: int | None = None
+    plain_quartics: bool = False
 
     def __post_init__(self):
         if self.path_forces not in PATH_FORCE_MODES:
@@ -87,7 +94,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     stem = name or osim.stem
     doc = load_document(osim)
     skel = read_skeleton(doc)
-    builder = MjcfBuilder(skel)
+    builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics)
     result = builder.build()
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
@@ -118,7 +125,8 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
             designed: dict[str, list] = {}
             for v in vias:
                 designed.setdefault(v.path, []).append(v)
-            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=options.workers, held=tendons.held, quick=options.quick,
+            fits = fit_paths(osim, xml0, tendons.path_geoms, workers=options.workers, held=tendons.held,
+                             quick=options.quick,
                              designed=designed)
             apply_fits(spec, fits, builder.exact, tendons.exact)
             model = spec.compile()
@@ -191,20 +199,20 @@ def _set_length_ranges(spec: mujoco.MjSpec, model: mujoco.MjModel, builder: Mjcf
 
 def _relative_meshdir(xml: str) -> str:
     """MJCF text with ``compiler/@meshdir`` made relative to the file (meshes sit beside it)."""
-    root = etree.fromstring(xml.encode())
+    root = mjcf_text.parse(xml)
     for comp in root.iter("compiler"):
         if comp.get("meshdir") is not None:
             comp.set("meshdir", ".")
-    return etree.tostring(root, encoding="unicode", pretty_print=True)
+    return mjcf_text.to_text(root)
 
 
 def _default_pose(xml: str, qpos0) -> str:
     """MJCF text whose ``default-pose`` keyframe holds ``qpos0`` in full precision."""
-    root = etree.fromstring(xml.encode())
+    root = mjcf_text.parse(xml)
     for key in root.iter("key"):
         if key.get("name") == "default-pose":
-            key.set("qpos", " ".join(f"{float(v):.17g}" for v in qpos0))
-    return etree.tostring(root, encoding="unicode", pretty_print=True)
+            key.set("qpos", mjcf_text.number_text(qpos0))
+    return mjcf_text.to_text(root)
 
 
 def _publish(stage: Path, out_dir: Path, stem: str) -> None:

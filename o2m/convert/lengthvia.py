@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from o2m.convert.builder import Approximation, MjcfBuilder
-from o2m.convert.tendons import _segment_distance, wrap_segments
+from o2m.convert.wraps import segment_distance as _segment_distance
+from o2m.convert.wraps import wrap_segments
 from o2m.osim import runtime
 from o2m.osim.functions import PolynomialFunction
 from o2m.osim.paths import Path, PathPoint, WrapObject

@@ -15,8 +15,8 @@ import numpy as np
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL
 
-__all__ = ["DLDQ_CONSISTENCY", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "one_pose_spikes", "opensim_spikes",
-           "outlying_changes"]
+__all__ = ["DLDQ_CONSISTENCY", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "one_pose_spikes",
+           "opensim_spikes", "outlying_changes"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01

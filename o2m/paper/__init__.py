@@ -2,7 +2,35 @@
 CMA-ES, corrective controls, speed and figures, in the order :func:`run_paper` runs them."""
 
 from o2m.paper.dataset import Dataset, load_dataset, make_dataset
-from o2m.paper.pipeline import FULL, QUICK, Experiment, Settings, joint_mae, load_experiment, run_paper
+from o2m.paper.pipeline import (
+    FULL,
+    QUICK,
+    Experiment,
+    Settings,
+    correction_start,
+    fit_muscle_forces,
+    fitted_model,
+    joint_mae,
+    load_experiment,
+    run_paper,
+)
+from o2m.paper.reproduce import PaperRun, format_summary, reproduce
 
-__all__ = ["FULL", "QUICK", "Dataset", "Experiment", "Settings", "joint_mae", "load_dataset", "load_experiment",
-           "make_dataset", "run_paper"]
+__all__ = [
+    "FULL",
+    "QUICK",
+    "Dataset",
+    "Experiment",
+    "PaperRun",
+    "Settings",
+    "correction_start",
+    "fit_muscle_forces",
+    "fitted_model",
+    "format_summary",
+    "joint_mae",
+    "load_dataset",
+    "load_experiment",
+    "make_dataset",
+    "reproduce",
+    "run_paper",
+]

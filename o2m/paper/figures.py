@@ -93,10 +93,14 @@ def overlay(times: np.ndarray, dofs: list[str], opensim: np.ndarray, mujoco: dic
     return fig
 
 
+#: No creation date or software version in the files, so a rerun that changes no number changes no byte.
+_REPRODUCIBLE = {"png": {"Software": None}, "pdf": {"CreationDate": None, "Producer": None, "Creator": None}}
+
+
 def _save(fig, out: Path, name: str) -> list[Path]:
     paths = [out / f"{name}.png", out / f"{name}.pdf"]
-    fig.savefig(paths[0], dpi=150)
-    fig.savefig(paths[1])
+    fig.savefig(paths[0], dpi=150, metadata=_REPRODUCIBLE["png"])
+    fig.savefig(paths[1], metadata=_REPRODUCIBLE["pdf"])
     _plt().close(fig)
     return paths
 

@@ -135,7 +135,8 @@ def pulling_force(model: mujoco.MjModel, muscle: str, length, velocity, activati
     L, V = np.asarray(length, float), np.asarray(velocity, float)
     L0 = (lr[1] - lr[0]) / (g[1] - g[0])
     Ln = g[0] + (L - lr[0]) / L0
-    active = g[2] * np.asarray(activation, float) * active_force_length(Ln, g[4], g[5]) * force_velocity(V / (L0 * g[6]), g[8])
+    active = (g[2] * np.asarray(activation, float) * active_force_length(Ln, g[4], g[5])
+              * force_velocity(V / (L0 * g[6]), g[8]))
     passive = b[2] * passive_force(g[0] + (L - lr[0]) / ((lr[1] - lr[0]) / (b[1] - b[0])), b[5], b[7])
     lo, hi = model.tendon_lengthspring[t]
     d = np.where(L > hi, L - hi, np.where(L < lo, L - lo, 0.0))
@@ -206,8 +207,8 @@ def _force(x: np.ndarray, f0: float, lr: np.ndarray, length, velocity, activatio
     Vn = np.asarray(velocity) / (L0 * math.exp(lvmax))
     d = np.maximum(np.asarray(length) - edge, 0.0)
     spring = d * (k1 + d * (k2 + d * k3))
-    return scale * f0 * np.asarray(activation) * active_force_length(Ln, lmin, lmax) * force_velocity(Vn, fvmax) + spring \
-        + c * np.asarray(velocity)
+    fl, fv = active_force_length(Ln, lmin, lmax), force_velocity(Vn, fvmax)
+    return scale * f0 * np.asarray(activation) * fl * fv + spring + c * np.asarray(velocity)
 
 
 def _start(model: mujoco.MjModel, aid: int, static: tuple[np.ndarray, ...] | None) -> np.ndarray:

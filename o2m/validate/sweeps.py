@@ -19,7 +19,8 @@ from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL, sample_bounds
 from o2m.osim.spikes import DLDQ_CONSISTENCY
 
-__all__ = ["format_moment_arm_report", "moment_arm_curve", "moment_arm_report", "moment_arm_sweeps", "plot_moment_arm_sweeps", "plot_moment_arms"]
+__all__ = ["format_moment_arm_report", "moment_arm_curve", "moment_arm_report", "moment_arm_sweeps",
+           "plot_moment_arm_sweeps", "plot_moment_arms"]
 
 
 def _moment_arm_curve(pair: ModelPair, muscle: str, coordinate: str, n: int, method: str

@@ -1,6 +1,6 @@
 """Couplings beyond a quartic: a spline as a sum of MuJoCo joints along one axis.
 
-o2m.functions.fit_couplings writes each coupled axis as a main quartic plus outer joints
+o2m.convert.couplings.fit_couplings writes each coupled axis as a main quartic plus outer joints
 (quartics of inner joints, themselves quartics of the coordinate). Checked here: the fit
 recovers polynomials the structure represents (degree 8 and 12) to round-off, never gets
 worse with more joints, is exact at the reference and keeps its joints' motions small; a
@@ -13,7 +13,16 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from o2m.test_joint_types import (
+
+from o2m.convert import couplings
+from o2m.convert.builder import COUPLING_TARGET
+from o2m.convert.couplings import COUPLING_AMPLITUDE, fit_coupling, fit_couplings
+from o2m.convert.polyfit import fit_polynomial
+from o2m.mj.posing import joint_equality_plan, pose_mujoco
+from o2m.mj.simulate import initial_state, state_layout
+from o2m.osim.functions import SimmSpline
+from o2m.validate.kinematics import compare_kinematics
+from tests.convert.test_joint_types import (
     IDENTITY,
     KNEE_RANGE,
     KNEE_TX,
@@ -27,13 +36,6 @@ from o2m.test_joint_types import (
     typed_joint,
     xy_function,
 )
-
-from o2m.convert.builder import COUPLING_TARGET
-from o2m.mj.posing import joint_equality_plan, pose_mujoco
-from o2m.mj.simulate import initial_state, state_layout
-from o2m.osim import functions
-from o2m.osim.functions import COUPLING_AMPLITUDE, SimmSpline, fit_coupling, fit_couplings
-from o2m.validate.kinematics import compare_kinematics
 from tests.helpers import convert_options
 
 P = np.polynomial.polynomial
@@ -128,7 +130,7 @@ def test_margin_keeps_the_fit_just_beyond_the_range():
     beyond = [float(np.max(np.abs(f.axis_value(0, x) - knee(x)))) for f in (plain, wide)]
     assert beyond[1] <= wide.axes[0].margin_error * 1.01
     assert beyond[1] < 0.5 * beyond[0], beyond
-    assert wide.axes[0].margin_error <= functions.COUPLING_MARGIN_SLACK * wide.axes[0].max_error * 1.01
+    assert wide.axes[0].margin_error <= couplings.COUPLING_MARGIN_SLACK * wide.axes[0].max_error * 1.01
 
 
 def test_fits_are_reproducible():
@@ -136,10 +138,21 @@ def test_fits_are_reproducible():
     scipy's MINPACK differs in the last bit from run to run, which would change the fit)."""
     runs = []
     for _ in range(2):
-        functions._COUPLING_CACHE.clear()
         fit = fit_coupling(knee, *KNEE_RANGE, 0.0, target=0.0, max_inner=2)
         runs.append((fit.inners.tobytes(), fit.axes[0].main.tobytes(), fit.shapes.tobytes()))
     assert runs[0] == runs[1]
+
+
+def test_cache_is_the_callers():
+    """Fits are kept only in the cache a caller passes (no module state): a repeat with it returns
+    the fit made first, a repeat without it makes the same fit again."""
+    cache = {}
+    first = fit_coupling(knee, *KNEE_RANGE, 0.0, target=0.0, max_inner=1, cache=cache)
+    assert any(f is first for f in cache.values())
+    assert fit_coupling(knee, *KNEE_RANGE, 0.0, target=0.0, max_inner=1, cache=cache) is first
+    again = fit_coupling(knee, *KNEE_RANGE, 0.0, target=0.0, max_inner=1)
+    assert again is not first and again.inners.tobytes() == first.inners.tobytes()
+    assert again.axes[0].main.tobytes() == first.axes[0].main.tobytes()
 
 
 def test_slope_is_the_derivative_of_the_sum_of_joints():
@@ -153,8 +166,8 @@ def test_slope_is_the_derivative_of_the_sum_of_joints():
     err = fit.axis_slope(0, x) - KNEE.derivative(x)
     assert fit.axes[0].slope_error == pytest.approx(float(np.max(np.abs(err))), rel=0.02)
     assert fit.axes[0].slope_rms == pytest.approx(float(np.sqrt(np.mean(err ** 2))), rel=0.02)
-    quartic = functions.fit_polynomial(knee, *KNEE_RANGE, 0.0, degree=4, exact_at_x0=True)
-    q_max, q_rms = functions.polynomial_slope_errors(knee, quartic.coef, *KNEE_RANGE, 0.0)
+    quartic = fit_polynomial(knee, *KNEE_RANGE, 0.0, degree=4, exact_at_x0=True)
+    q_max, q_rms = couplings.polynomial_slope_errors(knee, quartic.coef, *KNEE_RANGE, 0.0)
     assert fit.axes[0].quartic_slope_error == pytest.approx(q_max, rel=0.02)
     assert fit.axes[0].quartic_slope_rms == pytest.approx(q_rms, rel=0.02)
     assert q_max == pytest.approx(3.75e-3, rel=0.02)  # m/rad: the gait knee translation's plain quartic

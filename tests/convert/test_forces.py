@@ -26,6 +26,7 @@ import pytest
 from o2m import models
 from o2m.convert import forces
 from o2m.convert.converter import convert
+from o2m.convert.force_context import _tendon_row
 from o2m.osim.document import load_document
 from o2m.osim.skeleton import read_skeleton
 from tests.helpers import convert_options, require_mirror
@@ -366,7 +367,7 @@ def test_ligament_matches_opensim(synthetic):
         tau_os = _mass_matrix(only, d) @ (acc[1] - acc[0])
         dofs = [int(only.jnt_dofadr[only.joint(c).id]) for c in COORDS]
         tau_mj = d.qfrc_passive[dofs]
-        arm = np.abs(forces._tendon_row(only, d, only.tendon("lig").id)[dofs]).max()  # m
+        arm = np.abs(_tendon_row(only, d, only.tendon("lig").id)[dofs]).max()  # m
         stretched += lig.getTension(st) > 1.0
         assert d.ten_length[only.tendon("lig").id] == pytest.approx(lig.getLength(st), abs=1e-12)
         assert np.abs(tau_mj - tau_os).max() <= a.max_error * arm + 1e-8, (q2, tau_mj, tau_os)

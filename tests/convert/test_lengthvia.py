@@ -13,6 +13,7 @@ from o2m.convert import lengthvia
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.converter import convert
 from o2m.mj.posing import joint_equality_plan, pose_mujoco
+from o2m.osim import runtime
 from o2m.osim.document import load_document
 from o2m.osim.paths import read_paths, read_wrap_objects
 from o2m.osim.runtime import load_model
@@ -36,7 +37,9 @@ def converted(arm26, tmp_path_factory):
     fetched = arm26[0]
     out = {}
     for vias in (True, False):
-        out[vias] = convert(fetched.osim, tmp_path_factory.mktemp(f"vias{vias}"), convert_options(workers=2, fit_mechanics=False, length_vias=vias), geometry_dirs=[fetched.geometry_dir])
+        options = convert_options(workers=2, fit_mechanics=False, length_vias=vias)
+        out[vias] = convert(fetched.osim, tmp_path_factory.mktemp(f"vias{vias}"), options,
+                            geometry_dirs=[fetched.geometry_dir])
     return out
 
 
@@ -81,7 +84,7 @@ def test_converted_tendon_has_the_designed_length(arm26, converted):
     d, plan = mujoco.MjData(m), joint_equality_plan(m)
     model, state = load_model(str(fetched.osim), 1e-12)
     cs = model.getCoordinateSet()
-    gp = lengthvia._geometry_path(model, "TRIlong")
+    gp = runtime.geometry_path(model, "TRIlong")
     rng = np.random.default_rng(0)
     sh, el = cs.get("r_shoulder_elev"), cs.get("r_elbow_flex")
     for _ in range(20):

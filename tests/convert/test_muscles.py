@@ -22,8 +22,6 @@ from o2m.convert.muscles import (
     MUJOCO_DEFAULTS,
     SUPPORTED_MUSCLES,
     MuscleParams,
-    _Bench,
-    _muscle_elements,
     error_summary,
     fit_muscles,
 )
@@ -187,40 +185,6 @@ def test_arm26_lengthrange_contains_other_poses(arm26, arm26_fit):
         assert lengths[:, k].max() <= p.lengthrange[1] + 1e-12, p.name
 
 
-def test_bench_equals_full_model(arm26):
-    """OpenSim's static tendon force on the bench (a straight path of the same MTU length) equals
-    the full model's at random poses, at activation 1 and 0."""
-    import opensim
-
-    from o2m.osim.document import load_document
-
-    opensim.Logger.setLevelString("error")
-    model = opensim.Model(str(arm26))
-    state = model.initSystem()
-    muscles = [model.getMuscles().get(i) for i in range(model.getMuscles().getSize())]
-    names = [m.getName() for m in muscles]
-    elements = _muscle_elements(load_document(arm26), names)
-    bench = _Bench([elements[n] for n in names])
-    cs = model.getCoordinateSet()
-    coords = [cs.get(i) for i in range(cs.getSize())]
-    rng = np.random.default_rng(7)
-    for _ in range(4):
-        st = opensim.State(state)
-        for c in coords:
-            c.setValue(st, float(rng.uniform(c.getRangeMin(), c.getRangeMax())), False)
-            c.setSpeedValue(st, 0.0)
-        model.assemble(st)
-        for a in (1.0, 0.0):
-            for m in muscles:
-                m.setActivation(st, a)
-            model.equilibrateMuscles(st)
-            model.realizeDynamics(st)
-            full = np.array([m.getTendonForce(st) for m in muscles])
-            lengths = np.array([[m.getLength(st)] for m in muscles])
-            on_bench, _ = bench.forces(lengths, a)
-            np.testing.assert_allclose(on_bench[:, 0], full, rtol=1e-6, atol=1e-6)
-
-
 def test_arm26_force_errors(arm26_fit):
     """MuJoCo's static force against OpenSim's over each lengthrange (bounds: module docstring)."""
     for p in arm26_fit.values():
@@ -333,12 +297,3 @@ def test_tug_of_war(tug):
         # Thelen muscles with 0.015/0.05 s activation/deactivation time constants
         np.testing.assert_allclose(p.timeconst, [0.015, 0.05])
         assert p.cost < p.start_cost
-
-
-def test_schutte_activation_mapping_follows_schutte_better_than_step_matching():
-    from o2m.convert.muscles import _schutte_time_constants
-
-    t_act, t_deact, rms, rms_step = _schutte_time_constants(0.1, 7.667, 1.459854)  # MoBL-ARMS' values
-    assert rms < 0.75 * rms_step  # measured 0.024 against 0.037
-    # Schutte rises with time constant ts / (a1 u + a2): 11 ms at u = 1, 27 ms at u = 0.3; falls with 68 ms
-    assert 0.01 < t_act < 0.03 and 0.05 < t_deact < 0.09

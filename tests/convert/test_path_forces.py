@@ -72,7 +72,8 @@ def pendulum(tmp_path_factory):
     folder = tmp_path_factory.mktemp("moving")
     osim_path = folder / "moving.osim"
     _model(osim_path)
-    convs = {mode: convert(osim_path, folder / mode, convert_options(path_forces=mode, fit_wraps=False, fit_mechanics=False))
+    convs = {mode: convert(osim_path, folder / mode,
+                           convert_options(path_forces=mode, fit_wraps=False, fit_mechanics=False))
              for mode in ("opensim", "kinematic", "auto")}
     return osim_path, convs
 

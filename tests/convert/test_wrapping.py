@@ -28,10 +28,11 @@ import pytest
 from scipy.optimize import brentq
 
 from o2m.convert.converter import convert
-from o2m.convert.tendons import PathGeom
 from o2m.convert.wrapfit import fit_paths
+from o2m.convert.wraps import PathGeom
 from o2m.mj.posing import pose_mujoco
-from o2m.validate.muscles import compare_muscles, sweep_jumps
+from o2m.validate.jumps import sweep_jumps
+from o2m.validate.muscles import compare_muscles
 from tests.helpers import convert_options
 
 osim.Logger.setLevelString("error")

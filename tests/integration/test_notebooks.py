@@ -22,6 +22,23 @@ def test_notebooks_are_numbered_and_stored_without_outputs():
         assert all(not c.get("outputs") for c in nb.cells if c.cell_type == "code"), p.name
 
 
+def test_notebooks_are_what_the_builder_writes(tmp_path):
+    """The committed notebooks' cells equal what tools/build_notebooks.py writes (edit the builder, not the .ipynb)."""
+    import importlib.util
+
+    import nbformat
+
+    spec = importlib.util.spec_from_file_location("build_notebooks", ROOT / "tools" / "build_notebooks.py")
+    builder = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(builder)
+    built = builder.build(tmp_path)
+    assert sorted(p.name for p in built) == [p.name for p in NOTEBOOKS]
+    for path in built:
+        fresh, committed = (nbformat.read(p, as_version=4) for p in (path, ROOT / "notebooks" / path.name))
+        assert [(c.cell_type, c.source) for c in fresh.cells] == [(c.cell_type, c.source) for c in committed.cells], \
+            f"{path.name}: rebuild it with python tools/build_notebooks.py"
+
+
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_runs_in_quick_mode(path, monkeypatch):
     require_mirror()

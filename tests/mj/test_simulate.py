@@ -53,7 +53,8 @@ def arm26(tmp_path_factory):
     require_mirror()
     fetched = models.fetch_model_with_geometry("arm26", progress=False)
     # the wrap fit at its full size (as without O2M_QUICK): the quick fit leaves BIClong about 1 mm off
-    conv = convert(fetched.osim, tmp_path_factory.mktemp("arm26"), convert_options(quick=False, workers=2), geometry_dirs=[fetched.geometry_dir])
+    conv = convert(fetched.osim, tmp_path_factory.mktemp("arm26"), convert_options(quick=False, workers=2),
+                   geometry_dirs=[fetched.geometry_dir])
     return fetched.osim, mujoco.MjModel.from_xml_path(str(conv.xml))
 
 

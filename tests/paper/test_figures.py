@@ -28,3 +28,9 @@ def test_figures_from_stored_results(tmp_path):
                            for e in ["png", "pdf"])
     for p in written:
         assert p.stat().st_size > 1000
+    # drawn again, every file is the same to the byte (no embedded dates): a rerun leaves git clean
+    again = make_figures(res, tmp_path / "figs2")
+    for a, b in zip(sorted(written), sorted(again), strict=True):
+        assert a.read_bytes() == b.read_bytes(), a.name
+        if a.suffix == ".pdf":
+            assert b"/CreationDate" not in a.read_bytes(), a.name

@@ -26,15 +26,9 @@ import opensim as osim
 import pytest
 
 from o2m.mj.tendons import mujoco_moment_arms, mujoco_tendon_lengths
-from o2m.validate.muscles import (
-    MuscleReport,
-    compare_muscles,
-    format_muscle_table,
-    moment_arm_curve,
-    opensim_length_steps,
-    plot_moment_arms,
-    sweep_jumps,
-)
+from o2m.validate.jumps import opensim_length_steps, sweep_jumps
+from o2m.validate.muscles import MuscleReport, compare_muscles, format_muscle_table
+from o2m.validate.sweeps import moment_arm_curve, plot_moment_arms
 
 osim.Logger.setLevelString("error")
 

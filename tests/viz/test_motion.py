@@ -20,7 +20,8 @@ def arm26(tmp_path_factory) -> mujoco.MjModel:
     from o2m.models import fetch_model_with_geometry
 
     f = fetch_model_with_geometry("arm26", progress=False)
-    res = convert(f.osim, tmp_path_factory.mktemp("motion-arm26"), convert_options(fit_mechanics=False), geometry_dirs=[f.geometry_dir])
+    res = convert(f.osim, tmp_path_factory.mktemp("motion-arm26"), convert_options(fit_mechanics=False),
+                  geometry_dirs=[f.geometry_dir])
     return mujoco.MjModel.from_xml_path(str(res.xml))
 
 

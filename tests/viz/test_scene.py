@@ -1,4 +1,4 @@
-"""meshcat scenes of converted models: geometry, animation, OpenSim side by side, HTML export.
+"""meshcat scenes of converted models: drawing, animation, OpenSim side by side, HTML export.
 
 The browser test opens an exported page in headless Chromium (Debian's ``chromium``, which
 ``.ci/run`` installs) and checks that geometry was drawn; it skips when no Chromium is found.
@@ -20,40 +20,10 @@ import pytest
 
 pytest.importorskip("meshcat")
 
-from o2m.viz import viewer as V  # noqa: E402
-from tests.helpers import convert_options, require_mirror  # noqa: E402
+from o2m.viz import scene as V  # noqa: E402
+from tests.viz.helpers import arm_motion  # noqa: E402
 
 MB = 1e6
-
-
-def _convert(name: str, out: Path):
-    require_mirror()
-    from o2m.convert.converter import convert
-    from o2m.models import fetch_model_with_geometry
-
-    f = fetch_model_with_geometry(name, progress=False)
-    res = convert(f.osim, out, convert_options(fit_mechanics=False), geometry_dirs=[f.geometry_dir])
-    return f.osim, res.xml, mujoco.MjModel.from_xml_path(str(res.xml))
-
-
-@pytest.fixture(scope="session")
-def arm26(tmp_path_factory):
-    """(osim path, MJCF path, MjModel) of arm26, converted once per session."""
-    return _convert("arm26", tmp_path_factory.mktemp("viewer-arm26"))
-
-
-@pytest.fixture(scope="session")
-def mobl(tmp_path_factory):
-    """(osim path, MJCF path, MjModel) of MoBL-ARMS without wrapping (the paper's model)."""
-    return _convert("mobl_arms_no_wrap", tmp_path_factory.mktemp("viewer-mobl"))
-
-
-def _arm_motion(model: mujoco.MjModel, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """qpos (n, nq) flexing the elbow and raising the shoulder, and activations (n, nu) 0 -> 1."""
-    q = np.tile(model.qpos0, (n, 1))
-    q[:, model.joint("r_shoulder_elev").qposadr[0]] = np.linspace(0.0, 0.8, n)
-    q[:, model.joint("r_elbow_flex").qposadr[0]] = np.linspace(0.2, 2.0, n)
-    return q, np.tile(np.linspace(0.0, 1.0, n)[:, None], (1, model.nu))
 
 
 def _commands(html: str) -> list[dict]:
@@ -68,72 +38,6 @@ def _self_contained(html: str) -> bool:
 
 
 # --------------------------------------------------------------------------------------------
-# Pieces
-# --------------------------------------------------------------------------------------------
-
-
-def test_activation_colours_and_mapping(arm26):
-    _, _, m = arm26
-    rgb = V.activation_colors(np.array([0.0, 1.0, np.nan]))
-    np.testing.assert_allclose(rgb[0], [0, 0, 1])
-    np.testing.assert_allclose(rgb[1], [1, 0, 0])
-    np.testing.assert_allclose(rgb[2], V.NO_ACTIVATION_RGB)
-    per_actuator = np.arange(m.nu) / m.nu
-    act = V.tendon_activations(m, per_actuator, 3)
-    assert act.shape == (3, m.ntendon)
-    for i in range(m.nu):
-        assert act[0, m.actuator_trnid[i, 0]] == pytest.approx(per_actuator[i])
-    with pytest.raises(V.ViewerError):
-        V.tendon_activations(m, np.zeros((3, m.nu + 1)), 3)
-
-
-def test_decimate_mesh_keeps_the_shape():
-    # A unit-radius UV sphere, 4k triangles.
-    th, ph = np.meshgrid(np.linspace(0, np.pi, 33), np.linspace(0, 2 * np.pi, 65)[:-1], indexing="ij")
-    v = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(32), np.arange(64), indexing="ij")
-    a, b = i * 64 + j, i * 64 + (j + 1) % 64
-    f = np.concatenate([np.stack([a, b, b + 64], -1).reshape(-1, 3), np.stack([a, b + 64, a + 64], -1).reshape(-1, 3)])
-    v2, f2 = V.decimate_mesh(v, f, 0.2)
-    assert len(f2) < len(f) / 4 and len(v2) < len(v) / 4
-    assert f2.min() >= 0 and f2.max() < len(v2)
-    assert np.all(np.abs(np.linalg.norm(v2, axis=1) - 1.0) < 0.2)  # vertices stay near the surface
-    v3, f3 = V.decimate_mesh(v, f, None)
-    assert np.array_equal(v3, v) and np.array_equal(f3, f)
-
-
-def test_tendon_paths_follow_wrapping_surfaces(arm26):
-    _, _, m = arm26
-    d = mujoco.MjData(m)
-    d.qpos[:] = _arm_motion(m, 2)[0][-1]
-    mujoco.mj_forward(m, d)
-    arcs = V.tendon_segments(m, d, arc_points=8)
-    chords = V.tendon_segments(m, d, arc_points=0)
-    assert len(arcs) == m.ntendon
-    length = np.array([np.linalg.norm(s[:, 1] - s[:, 0], axis=1).sum() for s in arcs])
-    chord = np.array([np.linalg.norm(s[:, 1] - s[:, 0], axis=1).sum() for s in chords])
-    np.testing.assert_allclose(length, d.ten_length, atol=5e-4)  # arcs drawn over the wrap surfaces
-    assert np.all(chord <= d.ten_length + 1e-9)
-
-
-def test_opensim_kinematics_matches_mujoco(arm26):
-    osim, _, m = arm26
-    q, _ = _arm_motion(m, 4)
-    names = ["r_shoulder_elev", "r_elbow_flex"]
-    values = q[:, [m.joint(n).qposadr[0] for n in names]]
-    os_frames = V.opensim_frames(osim, m, names, values)
-    mj_frames = V.mujoco_frames(m, q)
-    for a, b in zip(os_frames, mj_frames, strict=True):
-        np.testing.assert_allclose(a.body_pos, b.body_pos, atol=1e-6)
-        np.testing.assert_allclose(a.body_rot, b.body_rot, atol=1e-6)
-        for sa, sb in zip(a.tendon_segments, b.tendon_segments, strict=True):  # same origin and insertion
-            np.testing.assert_allclose(sa[0, 0], sb[0, 0], atol=1e-6)
-            np.testing.assert_allclose(sa[-1, 1], sb[-1, 1], atol=1e-6)
-    with pytest.raises(V.ViewerError, match="no coordinate"):
-        V.opensim_frames(osim, m, ["nope"], np.zeros((1, 1)))
-
-
-# --------------------------------------------------------------------------------------------
 # Scenes and export
 # --------------------------------------------------------------------------------------------
 
@@ -142,7 +46,7 @@ def test_scene_contents_and_html(arm26, tmp_path):
     _, _, m = arm26
     v = V.Viewer()
     scene = v.add_model(m)
-    scene.show_qpos(_arm_motion(m, 2)[0][-1], np.linspace(0, 1, m.nu))
+    scene.show_qpos(arm_motion(m, 2)[0][-1], np.linspace(0, 1, m.nu))
     v.frame_camera()
     path = v.export_html(tmp_path / "arm26.html")
     html = path.read_text()
@@ -169,7 +73,7 @@ def test_scene_contents_and_html(arm26, tmp_path):
 
 def test_animation_export(arm26, tmp_path):
     _, _, m = arm26
-    q, act = _arm_motion(m, 12)
+    q, act = arm_motion(m, 12)
     v = V.animate_qpos(m, q, fps=24, activations=act, tendon_stride=2, html=tmp_path / "anim.html")
     html = (tmp_path / "anim.html").read_text()
     assert _self_contained(html)
@@ -190,7 +94,7 @@ def test_animation_export(arm26, tmp_path):
 
 def test_side_by_side(arm26, tmp_path):
     osim, _, m = arm26
-    q, act = _arm_motion(m, 5)
+    q, act = arm_motion(m, 5)
     names = ["r_shoulder_elev", "r_elbow_flex"]
     values = q[:, [m.joint(n).qposadr[0] for n in names]]
     v = V.side_by_side(m, osim, names, values, q, fps=10, activations=act, html=tmp_path / "sbs.html",
@@ -222,7 +126,7 @@ def test_notebook_iframe(tmp_path):
 
 
 def test_mobl_arms_sizes(mobl, tmp_path):
-    """Measured sizes of MoBL-ARMS pages (reported in o2m.viewer's docstring)."""
+    """Measured sizes of MoBL-ARMS pages (reported in o2m.viz.scene's docstring)."""
     _, _, m = mobl
     sizes = {}
     for dec in (None, 0.003):
@@ -276,7 +180,7 @@ def _drawn_fraction(rgb: np.ndarray) -> float:
 def test_exported_html_draws_in_a_browser(arm26, tmp_path):
     pytest.importorskip("PIL")
     _, _, m = arm26
-    q, act = _arm_motion(m, 4)
+    q, act = arm_motion(m, 4)
     background = (0.1, 0.1, 0.15)
     page = V.animate_qpos(m, q, fps=30, activations=act, background=background, decimate=0.004,
                           html=tmp_path / "arm26.html")

@@ -1,0 +1,187 @@
+"""CoordinateActuator, TorqueActuator and PointActuator as MuJoCo motors and site transmissions.
+
+* **CoordinateActuator**: a motor on the coordinate's joint, ``gear = optimal_force``.
+* **TorqueActuator**: a site transmission with ``refsite``: the torque ``optimal_force ·
+  axis`` on bodyA, its opposite on bodyB. Exact when the axis is fixed in bodyA
+  (``torque_is_global`` false) or when one body is ground; a global axis between two moving
+  bodies is fixed in bodyA as at the default pose (the report gives how far it turns away).
+* **PointActuator**: a site at the point with a force gear, in the body frame, or in the world
+  frame through a ``refsite`` on the world when ``force_is_global``. A global point (fixed in
+  ground, sliding over the body) is fixed in the body where it is at the default pose (the
+  report gives how far it moves).
+
+Actuators are named as in OpenSim; ``min_control`` and ``max_control`` become ``ctrlrange`` when
+both are finite. Forces in newtons, torques in newton metres.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+from o2m.convert.builder import Approximation, MjcfBuilder
+from o2m.convert.force_context import (
+    N_POSES,
+    ForceConversion,
+    PoseDrift,
+    _Context,
+    _flag,
+    _number,
+    _random_values,
+    _text,
+    _vector,
+)
+from o2m.osim.skeleton import Skipped
+from o2m.transforms import OSIM_TO_MJ, Transform
+
+__all__ = ["convert_coordinate_actuator", "convert_point_actuator", "convert_torque_actuator", "measure_drifts"]
+
+
+def _frame_by_name(ctx: _Context, el: etree._Element, prop: str) -> tuple[str, Transform]:
+    """(body, frame in body) of the PhysicalFrame a TorqueActuator/PointActuator property names."""
+    target = _text(el, prop)
+    if not target:
+        raise ctx.builder.doc.error(el, f"has no <{prop}>")
+    last = target.rstrip("/").split("/")[-1]
+    if last == "ground":
+        return "ground", Transform()
+    found = [f for f in ctx.reader.model.iter("Body", "PhysicalOffsetFrame", "Ground") if f.get("name") == last]
+    bodies = [f for f in found if f.tag == "Body"]
+    pick = bodies if len(bodies) == 1 else found
+    if len(pick) != 1:
+        why = "no frame has that name" if not pick else f"{len(pick)} frames share that name"
+        raise ctx.builder.doc.error(el, f"<{prop}> names '{target}', which cannot be resolved: {why}")
+    body, x, _ = ctx.reader.frame(pick[0])
+    return body, x
+
+
+def _body_site(ctx: _Context, body: str, name: str, pos: np.ndarray, quat: np.ndarray | None = None) -> str:
+    """Add a site to ``body`` (OpenSim body frame; ground: the world); returns its name."""
+    name = ctx.unique("site", name)
+    quat = np.array([1.0, 0, 0, 0]) if quat is None else np.asarray(quat, dtype=float)
+    pos = OSIM_TO_MJ @ pos if body == "ground" else np.asarray(pos, dtype=float)
+    ctx.builder.bodies[body].add_site(name=name, pos=pos, quat=quat, size=[0.004, 0, 0], group=5,
+                                      rgba=[0.9, 0.6, 0.1, 1])
+    ctx.builder.exact[("site", name)] = {"pos": pos, "quat": quat}
+    return name
+
+
+def _add_actuator(ctx: _Context, el: etree._Element, gear: np.ndarray, **target) -> None:
+    name = el.get("name")
+    act = ctx.spec.add_actuator(name=name, **target)
+    act.gear = [float(g) for g in gear]
+    lo, hi = _number(el, "min_control", -np.inf, ctx), _number(el, "max_control", np.inf, ctx)
+    if np.isfinite(lo) and np.isfinite(hi):
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.ctrlrange = [lo, hi]
+    else:
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        if np.isfinite(lo) or np.isfinite(hi):
+            ctx.builder.result.notes.append(f"{el.tag} '{name}': one-sided control range [{lo:g}, {hi:g}] left "
+                                            "unlimited (MuJoCo's ctrlrange has two ends)")
+    ctx.out.exact[("actuator", name)] = {"gear": np.asarray(gear, dtype=float)}
+    ctx.out.actuators.append(name)
+
+
+def convert_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
+    """CoordinateActuator -> a motor on the coordinate's joint, gear = optimal_force."""
+    b = ctx.builder
+    cname = _text(el, "coordinate")
+    if cname not in b.skel.coordinates:
+        raise b.doc.error(el, f"actuates coordinate '{cname}', which no joint defines")
+    if cname not in b.coord_joint or b.skel.coordinates[cname].locked:
+        ctx.out.skipped.append(Skipped(el.tag, el.get("name"), f"coordinate '{cname}' is locked, so the actuator "
+                                       "cannot move it (no MuJoCo joint)"))
+        return
+    gear = np.array([_number(el, "optimal_force", 1.0, ctx), 0, 0, 0, 0, 0])
+    _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_JOINT, target=cname)
+
+
+def convert_torque_actuator(ctx: _Context, el: etree._Element) -> None:
+    """TorqueActuator -> a site transmission with a refsite (torque on bodyA, reaction on bodyB)."""
+    b = ctx.builder
+    name = el.get("name")
+    body_a, x_a = _frame_by_name(ctx, el, "bodyA")
+    body_b, _ = _frame_by_name(ctx, el, "bodyB")
+    axis = _vector(el, "axis", (0.0, 0.0, 1.0), ctx)
+    if np.linalg.norm(axis) < 1e-12:
+        raise b.doc.error(el, "has a zero <axis>")
+    axis = axis / np.linalg.norm(axis)
+    force = _number(el, "optimal_force", 1.0, ctx)
+    is_global = _flag(el, "torque_is_global", True)
+    if body_a == body_b:
+        ctx.out.skipped.append(Skipped(el.tag, name, f"bodyA and bodyB are both '{body_a}' (no net torque)"))
+        return
+    local_axis = x_a.rot @ axis  # in bodyA's body frame, when not global
+    if not is_global and body_a != "ground":
+        # axis fixed in bodyA: refsite on A; MuJoCo puts +R_ref·gear on the site's body (B), so negate
+        ref = _body_site(ctx, body_a, f"{name}_refsite", np.zeros(3))
+        site = _body_site(ctx, body_b, f"{name}_site", np.zeros(3))
+        gear_rot = -force * local_axis
+    else:
+        ground_axis = axis if is_global else local_axis  # bodyA is ground when not global here
+        if body_b == "ground" or body_a == "ground":
+            ref = _body_site(ctx, "ground", f"{name}_refsite", np.zeros(3))
+            on, sign = (body_a, 1.0) if body_b == "ground" else (body_b, -1.0)
+            site = _body_site(ctx, on, f"{name}_site", np.zeros(3))
+            gear_rot = sign * force * (OSIM_TO_MJ @ ground_axis)
+        else:  # a ground-fixed axis between two moving bodies: fixed in bodyA as at the default pose
+            local = b.ground_frames[body_a].rot.T @ ground_axis
+            ref = _body_site(ctx, body_a, f"{name}_refsite", np.zeros(3))
+            site = _body_site(ctx, body_b, f"{name}_site", np.zeros(3))
+            gear_rot = -force * local
+            ctx.out.drifts.append(PoseDrift(el.tag, name, f"ground-fixed torque axis fixed in '{body_a}' as at the "
+                                            "default pose", body_a, ground_axis, local, "axis"))
+    _add_actuator(ctx, el, np.r_[np.zeros(3), gear_rot], trntype=mujoco.mjtTrn.mjTRN_SITE, target=site, refsite=ref)
+
+
+def convert_point_actuator(ctx: _Context, el: etree._Element) -> None:
+    """PointActuator -> a site transmission with a force gear (world frame via a world refsite)."""
+    b = ctx.builder
+    name = el.get("name")
+    body, x = _frame_by_name(ctx, el, "body")
+    if body == "ground":
+        ctx.out.skipped.append(Skipped(el.tag, name, "acts on ground (no effect)"))
+        return
+    point = _vector(el, "point", (0.0, 0.0, 0.0), ctx)
+    direction = _vector(el, "direction", (1.0, 0.0, 0.0), ctx)
+    if np.linalg.norm(direction) < 1e-12:
+        raise b.doc.error(el, "has a zero <direction>")
+    direction = direction / np.linalg.norm(direction)
+    force = _number(el, "optimal_force", 1.0, ctx)
+    if _flag(el, "point_is_global", False):
+        local = b.ground_frames[body].inverse().apply(point)
+        ctx.out.drifts.append(PoseDrift(el.tag, name, "ground-fixed application point fixed in the body as at the "
+                                        "default pose", body, point, local, "point"))
+    else:
+        local = x.apply(point)
+    site = _body_site(ctx, body, f"{name}_site", local)
+    if _flag(el, "force_is_global", False):
+        ref = _body_site(ctx, "ground", f"{name}_refsite", np.zeros(3))
+        gear = np.r_[force * (OSIM_TO_MJ @ direction), np.zeros(3)]
+        _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_SITE, target=site, refsite=ref)
+    else:
+        gear = np.r_[force * (x.rot @ direction), np.zeros(3)]
+        _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_SITE, target=site)
+
+def measure_drifts(out: ForceConversion, builder: MjcfBuilder) -> None:
+    """Measure how far each global axis or point fixed in a body moves from OpenSim's over random
+    poses and record it in ``builder.result.approximations``."""
+    result = builder.result
+    for dr in out.drifts:
+        result.approximations.append(Approximation(
+            dr.element, dr.name, dr.what, _measure_drift(dr, builder), "rad" if dr.kind == "axis" else "m",
+            f"worst over {N_POSES} poses"))
+
+
+def _measure_drift(dr: PoseDrift, builder: MjcfBuilder) -> float:
+    worst = 0.0
+    for values in _random_values(builder, N_POSES):
+        frame = builder.ground_frames_at(builder.coordinate_values(values))[dr.body]
+        if dr.kind == "axis":
+            c = float(np.clip((frame.rot @ dr.local) @ dr.value, -1.0, 1.0))
+            worst = max(worst, float(np.arccos(c)))
+        else:
+            worst = max(worst, float(np.linalg.norm(frame.apply(dr.local) - dr.value)))
+    return worst

@@ -1,0 +1,243 @@
+"""What the force handlers share: the conversion context, the records of what each force became,
+reading an element's properties, and the poses forces are measured at.
+
+Units: SI (rad, m, N, N m, s). A :class:`ForceConversion` records one conversion; each handler
+(:mod:`o2m.convert.limit_forces`, :mod:`o2m.convert.ligaments`, :mod:`o2m.convert.actuators`)
+gets a :class:`_Context` holding it and the :class:`~o2m.convert.builder.MjcfBuilder`.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+from o2m.convert.builder import MjcfBuilder
+from o2m.osim.functions import Function
+from o2m.osim.skeleton import SkeletonReader, Skipped
+
+__all__ = ["FAR", "N_GRID", "N_POSES", "ForceConversion", "Ligament", "LimitForce", "PoseDrift", "SideFit"]
+
+#: Samples of the coordinate (or tendon length) a fit and a measurement use.
+N_GRID = 241
+#: Random poses used to measure pose-dependent errors (ligament force, global axes and points).
+N_POSES = 200
+#: A length o2m uses for "no end" in a one-sided dead band (m or rad).
+FAR = 1e6
+
+
+def _step(x: np.ndarray, x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
+    """SimTK::Function::Step: y0 below x0, y1 above x1, a quintic (10t³ - 15t⁴ + 6t⁵) between."""
+    t = np.clip((np.asarray(x, dtype=float) - x0) / (x1 - x0), 0.0, 1.0)
+    return y0 + (y1 - y0) * t ** 3 * (10.0 + t * (6.0 * t - 15.0))
+
+
+@dataclass
+class SideFit:
+    """One side of a limit force (or a ligament) as a MuJoCo spring.
+
+    ``kind`` is "spring" (joint linear spring: ``k`` about ``ref``) or "tendon" (dead band edge
+    ``edge`` and stiffness polynomial ``coef`` (a, b, c) in the tendon's own sign convention).
+    ``max_error`` is the fit's worst error over the grid (N m, N)."""
+
+    kind: str
+    side: str  # "lower", "upper" (or "tension" for a ligament)
+    k: float = 0.0
+    ref: float = 0.0
+    edge: float = 0.0
+    coef: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    max_error: float = 0.0
+    tendon: str = ""
+
+
+@dataclass
+class LimitForce:
+    """A CoordinateLimitForce in SI units, and what it became."""
+
+    name: str
+    coordinate: str
+    joint: str  # the MuJoCo joint (named as the coordinate)
+    motion: str  # OpenSim motion type: rotational, translational, coupled
+    q_up: float
+    k_up: float
+    q_lo: float
+    k_lo: float
+    damping: float
+    transition: float
+    range: tuple[float, float]  # the coordinate's range (its fit range when unbounded)
+    grid: tuple[float, float]  # where it is fitted and measured: the range and RANGE_MARGIN of it beyond
+    hinge: bool = True  # the MuJoCo joint is a hinge (torques in N m), else a slide (N)
+    sides: list[SideFit] = field(default_factory=list)
+    joint_damping: float = 0.0
+    damping_error: float = 0.0  # per unit speed
+
+    def stiffness_steps(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """OpenSim's stepped stiffnesses (K_up(q), K_lo(q))."""
+        k_up = _step(q, self.q_up, self.q_up + self.transition, 0.0, self.k_up)
+        k_lo = _step(q, self.q_lo - self.transition, self.q_lo, self.k_lo, 0.0)
+        return k_up, k_lo
+
+    def torque(self, q: np.ndarray, qdot: np.ndarray | float = 0.0) -> np.ndarray:
+        """OpenSim's generalized force (N m or N) at ``q``, ``qdot``."""
+        q = np.asarray(q, dtype=float)
+        k_up, k_lo = self.stiffness_steps(q)
+        return -k_up * (q - self.q_up) + k_lo * (self.q_lo - q) - self.damping * self.weight(q) * qdot
+
+    def weight(self, q: np.ndarray) -> np.ndarray:
+        """The damping's step weight ``K_up(q)/K_up + K_lo(q)/K_lo`` (a side of zero stiffness adds 0)."""
+        k_up, k_lo = self.stiffness_steps(np.asarray(q, dtype=float))
+        w = np.zeros_like(k_up)
+        if self.k_up != 0.0:
+            w = w + k_up / self.k_up
+        if self.k_lo != 0.0:
+            w = w + k_lo / self.k_lo
+        return w
+
+    def unit(self) -> str:
+        return "N m" if self.hinge else "N"
+
+
+@dataclass
+class Ligament:
+    """A Ligament: its tendon, resting length (m), pcsa force (N) and force-length curve."""
+
+    name: str
+    tendon: str
+    resting_length: float
+    pcsa_force: float
+    curve: Function
+    fit: SideFit | None = None
+    length_range: tuple[float, float] = (0.0, 0.0)
+
+    def tension(self, length: np.ndarray) -> np.ndarray:
+        """OpenSim's tension (N) at path ``length`` (m): 0 when not longer than the resting length."""
+        length = np.asarray(length, dtype=float)
+        f = self.pcsa_force * np.asarray(self.curve(length / self.resting_length), dtype=float)
+        return np.where(length <= self.resting_length, 0.0, f)
+
+
+@dataclass
+class PoseDrift:
+    """A global axis or point fixed in a body as at the default pose; measured after building."""
+
+    element: str
+    name: str
+    what: str
+    body: str  # OpenSim body it is fixed in
+    value: np.ndarray  # the ground axis (unit) or ground point (m) OpenSim uses
+    local: np.ndarray  # what the MuJoCo model fixes in the body
+    kind: str  # "axis" or "point"
+
+
+@dataclass
+class ForceConversion:
+    """What the force handlers did in one conversion."""
+
+    handled: set[tuple[str, str]] = field(default_factory=set)  # (tag, name) of every element handled
+    skipped: list[Skipped] = field(default_factory=list)
+    limit_forces: list[LimitForce] = field(default_factory=list)
+    ligaments: list[Ligament] = field(default_factory=list)
+    drifts: list[PoseDrift] = field(default_factory=list)
+    actuators: list[str] = field(default_factory=list)
+    #: Full-precision attribute values by (MJCF tag, name), written over MuJoCo's 6-digit output.
+    exact: dict[tuple[str, str], dict[str, np.ndarray]] = field(default_factory=dict)
+
+    @property
+    def converted(self) -> int:
+        return len(self.limit_forces) + len(self.ligaments) + len(self.actuators)
+
+
+@dataclass
+class _Context:
+    builder: MjcfBuilder
+    reader: SkeletonReader
+    out: ForceConversion
+    names: dict[str, set[str]]  # MJCF tag -> names in use
+
+    @property
+    def spec(self) -> mujoco.MjSpec:
+        return self.builder.spec
+
+    def unique(self, tag: str, name: str) -> str:
+        used = self.names.setdefault(tag, set())
+        out, k = name, 1
+        while out in used:
+            out, k = f"{name}_{k}", k + 1
+        used.add(out)
+        return out
+
+
+# -- reading --------------------------------------------------------------------------------
+def _number(el: etree._Element, prop: str, default: float, ctx: _Context) -> float:
+    child = el.find(prop)
+    if child is None or not (child.text or "").strip():
+        return default
+    text = child.text.strip()
+    try:
+        return float(text.replace("Inf", "inf"))
+    except ValueError:
+        raise ctx.builder.doc.error(el, f"<{prop}> holds '{text}', not a number") from None
+
+
+def _vector(el: etree._Element, prop: str, default: tuple[float, float, float], ctx: _Context) -> np.ndarray:
+    child = el.find(prop)
+    if child is None or not (child.text or "").strip():
+        return np.array(default, dtype=float)
+    try:
+        v = np.array([float(x) for x in child.text.split()])
+    except ValueError:
+        raise ctx.builder.doc.error(el, f"<{prop}> holds '{child.text.strip()}', not numbers") from None
+    if v.size != 3 or not np.all(np.isfinite(v)):
+        raise ctx.builder.doc.error(el, f"<{prop}> must hold 3 finite numbers")
+    return v
+
+
+def _text(el: etree._Element, prop: str) -> str:
+    return (el.findtext(prop) or "").strip()
+
+
+def _flag(el: etree._Element, prop: str, default: bool) -> bool:
+    t = _text(el, prop).lower()
+    return default if not t else t in ("true", "1")
+
+
+def _applies_force(el: etree._Element) -> bool:
+    return _flag(el, "appliesForce", True) and not _flag(el, "isDisabled", False)
+
+
+def _independent_ranges(builder: MjcfBuilder) -> dict[str, tuple[float, float]]:
+    coords = {}
+    for name, (_, ax) in builder.coord_joint.items():
+        if builder.drivers[name].base == name and not builder.skel.coordinates[name].locked:
+            coords[name] = builder.fit_range(name, ax.kind)
+    return coords
+
+
+def _random_values(builder: MjcfBuilder, n: int, seed: int = 0) -> list[dict[str, float]]:
+    coords = _independent_ranges(builder)
+    rng = np.random.default_rng(seed)
+    return [{c: float(rng.uniform(lo, hi)) for c, (lo, hi) in coords.items()} for _ in range(n)]
+
+
+def _isolated(model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy of ``model`` with every spring and damper off."""
+    m = copy.deepcopy(model)
+    for arr in (m.jnt_stiffness, m.jnt_stiffnesspoly, m.dof_damping, m.dof_dampingpoly, m.tendon_stiffness,
+                m.tendon_stiffnesspoly, m.tendon_damping, m.tendon_dampingpoly):
+        arr[...] = 0.0
+    return m
+
+
+def _tendon_row(m: mujoco.MjModel, d: mujoco.MjData, t: int) -> np.ndarray:
+    """Row ``t`` (nv,) of the tendon Jacobian (``ten_J`` is sparse in MuJoCo >= 3.3)."""
+    tj = np.asarray(d.ten_J, dtype=float).ravel()
+    if not hasattr(m, "ten_J_rownnz"):
+        return tj.reshape(m.ntendon, m.nv)[t].copy()
+    row = np.zeros(m.nv)
+    a, n = int(m.ten_J_rowadr[t]), int(m.ten_J_rownnz[t])
+    row[m.ten_J_colind[a:a + n]] = tj[a:a + n]
+    return row
+

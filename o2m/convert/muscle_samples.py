@@ -1,0 +1,419 @@
+"""OpenSim's side of the muscle fit: MTU lengths over sampled poses, and static tendon forces on
+a bench over the lengthranges they give.
+
+Lengths are metres, forces newtons; only path lengths are read from poses, so OpenSim's Y-up
+ground does not enter. :func:`measure_muscles` gathers all a fit needs of one muscle in a
+:class:`MuscleSample` (with :mod:`o2m.convert.muscle_types`' time constants and force-velocity
+curve); :mod:`o2m.convert.muscles` fits MuJoCo's muscle to it.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from collections.abc import Callable
+from copy import deepcopy
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from lxml import etree
+
+from o2m.convert.muscle_types import _activation_times, _force_velocity, _prop
+from o2m.errors import ModelFileError
+from o2m.osim import runtime
+from o2m.osim.document import load_document
+
+__all__ = ["FV_FIT_RANGE", "N_EVAL", "MuscleSample", "measure_muscles", "sample_lengths"]
+
+#: Lengths (across the lengthrange) at which OpenSim's forces are computed and errors reported.
+N_EVAL = 197
+#: The force-velocity curve is fitted over normalized fiber velocities -FV_FIT_RANGE..FV_FIT_RANGE
+#: (fractions of the max contraction velocity), the speeds movements reach: in the MoBL-ARMS
+#: dataset 99 % of the muscle states are within ±0.17. Fitted over ±1 instead, MuJoCo's quadratic
+#: curve trades the slope at rest for the far ends, and the mean joint error against OpenSim
+#: (19 MoBL-ARMS test sets) is 0.111 rad instead of 0.096, on Arm26 (five 0.3-s excitations)
+#: 0.140 rad instead of 0.086.
+FV_FIT_RANGE = 0.2
+#: At most this many range corners are evaluated for one set of spanned coordinates.
+MAX_CORNERS = 256
+
+
+@dataclass
+class MuscleSample:
+    """What OpenSim says about one muscle, all a fit needs: its properties (``force`` N,
+    ``lopt``, ``lts`` m, pennation ``alpha`` rad, ``vmax_os`` optimal fiber lengths/s), its
+    ``lengthrange`` (m), static tendon forces (N) at activation 1 (``active``) and 0
+    (``passive``) at the MTU ``lengths`` (m), the force-velocity multiplier ``fv`` at normalized
+    fiber velocities ``fv_u``, MuJoCo time constants ``timeconst`` (s), the notes so far and the
+    ``seed`` of the fit's random restarts."""
+
+    name: str
+    type: str
+    force: float
+    lopt: float
+    lts: float
+    alpha: float
+    vmax_os: float
+    lengthrange: np.ndarray
+    lengths: np.ndarray
+    active: np.ndarray
+    passive: np.ndarray
+    fv_u: np.ndarray
+    fv: np.ndarray
+    timeconst: tuple[float, float]
+    notes: list[str]
+    seed: int
+
+
+# ---------------------------------------------------------------------------------------------
+# Poses and lengths
+# ---------------------------------------------------------------------------------------------
+
+
+class _PoseModel:
+    """The full OpenSim model, for MTU lengths at poses given by the independent coordinates."""
+
+    def __init__(self, osim_path: str):
+        osim = runtime.opensim()
+        try:
+            self.model = osim.Model(osim_path)
+            self.state = self.model.initSystem()
+        except Exception as exc:  # OpenSim raises generic RuntimeErrors
+            raise ModelFileError(f"{osim_path}: OpenSim could not load the model: {exc}") from exc
+        s = self.state
+        cs = self.model.getCoordinateSet()
+        coords = [cs.get(i) for i in range(cs.getSize())]
+        self.indep = [c for c in coords if not c.getLocked(s) and not c.isDependent(s)]
+        self.indep_names = [c.getName() for c in self.indep]
+        self.bounds = np.array([runtime.sample_bounds(c) for c in self.indep], dtype=float).reshape(-1, 2)
+        self.defaults = np.array([c.getValue(s) for c in self.indep], dtype=float)
+        ms = self.model.getMuscles()
+        self.muscles = [ms.get(i) for i in range(ms.getSize())]
+        self.muscle_names = [m.getName() for m in self.muscles]
+        self.muscle_types = [m.getConcreteClassName() for m in self.muscles]
+        self.couplers = self._coupler_chain(osim, coords)
+
+    def _coupler_chain(self, osim, coords) -> list | None:
+        """When every enforced constraint is a CoordinateCouplerConstraint, the couplers in an
+        order that evaluates each dependent after the coordinates it depends on: (dependent,
+        independents, function, scale factor). Setting dependents from them satisfies the
+        constraints exactly, as assembly would (to its tolerance), at a fraction of the cost.
+        None when other constraints need OpenSim's assembler."""
+        s = self.state
+        by_name = {c.getName(): c for c in coords}
+        cs = self.model.getConstraintSet()
+        pending = []
+        for i in range(cs.getSize()):
+            con = cs.get(i)
+            if not con.isEnforced(s):
+                continue
+            if con.getConcreteClassName() != "CoordinateCouplerConstraint":
+                return None
+            cc = osim.CoordinateCouplerConstraint.safeDownCast(con)
+            names = cc.getIndependentCoordinateNames()
+            indep = [names.get(j) for j in range(names.getSize())]
+            dep = cc.getDependentCoordinateName()
+            if dep not in by_name or any(n not in by_name for n in indep):
+                return None
+            pending.append((dep, indep, cc.getFunction(), _prop(cc, "scale_factor", 1.0)))
+        deps = {p[0] for p in pending}
+        done: set[str] = set()
+        chain = []
+        while pending:
+            ready = [p for p in pending if all(n not in deps or n in done for n in p[1])]
+            if not ready:
+                return None  # cyclic couplers: leave them to the assembler
+            for p in ready:
+                chain.append((by_name[p[0]], [by_name[n] for n in p[1]], p[2], p[3]))
+                done.add(p[0])
+                pending.remove(p)
+        return chain
+
+    def pose(self, q: np.ndarray):
+        """A state with the independent coordinates at ``q`` and every constraint satisfied."""
+        osim = runtime.opensim()
+        st = osim.State(self.state)
+        for c, v in zip(self.indep, q, strict=True):
+            c.setValue(st, float(v), False)
+        if self.couplers is None:
+            self.model.assemble(st)
+        else:
+            for dep, indep, fn, scale in self.couplers:
+                x = osim.Vector(len(indep), 0.0)
+                for j, c in enumerate(indep):
+                    x.set(j, c.getValue(st))
+                dep.setValue(st, scale * fn.calcValue(x), False)
+        self.model.realizePosition(st)
+        return st
+
+    def lengths(self, poses: np.ndarray) -> np.ndarray:
+        """(n_poses, n_muscles) MTU lengths; a pose OpenSim fails to assemble gives NaNs."""
+        out = np.full((len(poses), len(self.muscles)), np.nan)
+        for k, q in enumerate(poses):
+            try:
+                st = self.pose(q)
+            except Exception:  # assembly failure: leave the pose out
+                continue
+            out[k] = [m.getLength(st) for m in self.muscles]
+        return out
+
+
+_WORKER_MODELS: dict[str, _PoseModel] = {}
+
+
+def _worker_lengths(osim_path: str, poses: np.ndarray) -> np.ndarray:
+    pm = _WORKER_MODELS.get(osim_path)
+    if pm is None:
+        pm = _WORKER_MODELS[osim_path] = _PoseModel(osim_path)
+    return pm.lengths(poses)
+
+
+def _corner_poses(bounds: np.ndarray, defaults: np.ndarray, coords: tuple[int, ...],
+                  rng: np.random.Generator) -> np.ndarray:
+    k = len(coords)
+    if k == 0:
+        return np.empty((0, len(defaults)))
+    if 2**k <= MAX_CORNERS:
+        bits = (np.arange(2**k)[:, None] >> np.arange(k)[None, :]) & 1
+    else:
+        bits = rng.integers(0, 2, size=(MAX_CORNERS, k))
+    poses = np.repeat(defaults[None, :], len(bits), axis=0)
+    cols = np.array(coords)
+    poses[:, cols] = np.where(bits == 1, bounds[cols, 1], bounds[cols, 0])
+    return poses
+
+
+def _lengths_parallel(pool, osim_path: str, poses: np.ndarray, n_chunks: int) -> np.ndarray:
+    chunks = [c for c in np.array_split(poses, n_chunks) if len(c)]
+    futures = [pool.submit(_worker_lengths, osim_path, c) for c in chunks]
+    return np.concatenate([f.result() for f in futures], axis=0)
+
+
+def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses: int, seed: int, processes: int,
+                   get_pool: Callable[[], Any]) -> tuple[np.ndarray, int]:
+    """MTU lengths (poses, muscles) of the model ``pm`` (read from ``osim_path``) at ``n_poses``
+    random poses (seeded by ``seed``), the default pose, each coordinate at its range ends and the
+    range corners of the coordinates each ``supported`` muscle spans; and the number of poses OpenSim
+    failed to assemble (their rows are NaN). With ``processes`` > 1 the poses are shared out on the
+    pool ``get_pool()``."""
+    nq = len(pm.indep)
+    rng = np.random.default_rng(seed)
+    random_poses = rng.uniform(pm.bounds[:, 0], pm.bounds[:, 1], size=(n_poses, nq))
+    ends = [pm.defaults.copy()]
+    for i in range(nq):
+        for v in pm.bounds[i]:
+            q = pm.defaults.copy()
+            q[i] = v
+            ends.append(q)
+    ends = np.array(ends).reshape(-1, nq)
+    len_ends = pm.lengths(ends)
+    # coordinates each muscle spans: its length changes when the coordinate goes to a range end
+    nm = len(pm.muscles)
+    delta = np.abs(len_ends[1:] - len_ends[0][None, :]).reshape(nq, 2, nm).max(axis=1) if nq else np.zeros((0, nm))
+    spans = {i: tuple(int(k) for k in np.flatnonzero(delta[:, i] > 1e-7)) for i in supported}
+    corner_rng = np.random.default_rng([seed, 1])
+    corner_poses = [_corner_poses(pm.bounds, pm.defaults, s, corner_rng) for s in sorted(set(spans.values()))]
+    rest = np.concatenate([random_poses, *corner_poses], axis=0)
+    if processes > 1 and pm.couplers is None and len(rest) >= 200:
+        # OpenSim's assembler is the slow part (~5 ms a pose): share it out
+        len_rest = _lengths_parallel(get_pool(), osim_path, rest, 2 * processes)
+    else:
+        len_rest = pm.lengths(rest)
+    all_lengths = np.concatenate([len_ends, len_rest], axis=0)
+    n_failed = int(np.isnan(all_lengths[:, 0]).sum()) if all_lengths.size else 0
+    return all_lengths, n_failed
+
+
+def _lengthranges(all_lengths: np.ndarray, supported: list[int], names: list[str],
+                  n_failed: int) -> tuple[np.ndarray, dict[str, list[str]]]:
+    """(lengthrange (muscles, 2) m, notes per muscle) of the ``supported`` muscles (named ``names``)
+    from the sampled lengths; a constant length is padded."""
+    notes = {n: [] for n in names}
+    lr = np.zeros((len(names), 2))
+    for k, i in enumerate(supported):
+        col = all_lengths[:, i]
+        col = col[np.isfinite(col)]
+        lo, hi = float(col.min()), float(col.max())
+        if hi - lo < 1e-6:
+            pad = max(1e-4, 0.005 * hi)
+            notes[names[k]].append(f"MTU length is constant ({hi:.6g} m) over the coordinate ranges; "
+                                   f"lengthrange padded by {pad:.3g} m")
+            lo, hi = lo - pad, hi + pad
+        lr[k] = lo, hi
+        if n_failed:
+            notes[names[k]].append(f"{n_failed} sampled pose(s) failed to assemble and were left out")
+    return lr, notes
+
+
+# ---------------------------------------------------------------------------------------------
+# The bench
+# ---------------------------------------------------------------------------------------------
+
+
+_BENCH_PATH = """<GeometryPath name="path"><PathPointSet><objects>
+<PathPoint name="origin"><socket_parent_frame>/ground</socket_parent_frame><location>0 0 0</location></PathPoint>
+<PathPoint name="insertion"><socket_parent_frame>/bodyset/{body}</socket_parent_frame>
+<location>0 0 0</location></PathPoint>
+</objects></PathPointSet></GeometryPath>"""
+
+_BENCH_BODY = """<Body name="{body}"><mass>1</mass><mass_center>0 0 0</mass_center>
+<inertia>1 1 1 0 0 0</inertia></Body>"""
+
+_BENCH_JOINT = """<SliderJoint name="slider_{i}"><socket_parent_frame>ground_offset</socket_parent_frame>
+<socket_child_frame>{body}_offset</socket_child_frame>
+<coordinates><Coordinate name="length_{i}"><default_value>{default}</default_value><range>0 1000</range>
+<clamped>false</clamped></Coordinate></coordinates>
+<frames><PhysicalOffsetFrame name="ground_offset"><socket_parent>/ground</socket_parent>
+<translation>0 0 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+<PhysicalOffsetFrame name="{body}_offset"><socket_parent>/bodyset/{body}</socket_parent>
+<translation>0 0 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame></frames></SliderJoint>"""
+
+
+def _bench_document(elements: list[etree._Element]) -> str:
+    """An OpenSim document in which muscle i (a copy of ``elements[i]`` with its path replaced)
+    runs straight from the ground origin to body i, which slides along ground x: its MTU length
+    is coordinate ``length_i``."""
+    bodies, joints, forces = [], [], []
+    for i, src in enumerate(elements):
+        el = deepcopy(src)
+        body = f"bench_body_{i}"
+        for ch in list(el):
+            if not isinstance(ch.tag, str):
+                el.remove(ch)
+            elif ch.tag.endswith("Path") or ch.tag in ("path", "GeometryPath"):
+                idx = list(el).index(ch)
+                el.remove(ch)
+                el.insert(idx, etree.fromstring(_BENCH_PATH.format(body=body)))
+            elif ch.tag in ("appliesForce", "isDisabled"):
+                el.remove(ch)
+        lopt = float(el.findtext("optimal_fiber_length") or 0.1)
+        lts = float(el.findtext("tendon_slack_length") or 0.1)
+        bodies.append(_BENCH_BODY.format(body=body))
+        joints.append(_BENCH_JOINT.format(i=i, body=body, default=lopt + lts))
+        forces.append(etree.tostring(el, encoding="unicode"))
+    return (
+        '<?xml version="1.0" encoding="UTF-8" ?>\n<OpenSimDocument Version="40600"><Model name="o2m_bench">'
+        "<gravity>0 0 0</gravity>"
+        f'<BodySet name="bodyset"><objects>{"".join(bodies)}</objects></BodySet>'
+        f'<JointSet name="jointset"><objects>{"".join(joints)}</objects></JointSet>'
+        f'<ForceSet name="forceset"><objects>{"".join(forces)}</objects></ForceSet>'
+        "</Model></OpenSimDocument>"
+    )
+
+
+class _Bench:
+    """OpenSim's static tendon force of each muscle as a function of its MTU length."""
+
+    def __init__(self, elements: list[etree._Element]):
+        osim = runtime.opensim()
+        with tempfile.TemporaryDirectory(prefix="o2m-bench-") as tmp:
+            path = Path(tmp) / "bench.osim"
+            path.write_text(_bench_document(elements))
+            try:
+                self.model = osim.Model(str(path))
+                self.state = self.model.initSystem()
+            except Exception as exc:  # a muscle's own properties are invalid
+                raise ModelFileError(f"OpenSim rejects the model's muscles: {exc}") from exc
+        cs = self.model.getCoordinateSet()
+        self.coords = [cs.get(f"length_{i}") for i in range(len(elements))]
+        ms = self.model.getMuscles()
+        self.muscles = [ms.get(el.get("name")) for el in elements]
+
+    def forces(self, lengths: np.ndarray, activation: float) -> tuple[np.ndarray, np.ndarray]:
+        """Tendon forces (n_muscles, n) at MTU ``lengths`` (n_muscles, n), zero velocity, in
+        static equilibrium; NaN where OpenSim finds none. Also returns the activation OpenSim
+        actually used (its minimum-activation clamps apply)."""
+        s = self.state
+        nm, n = lengths.shape
+        out = np.full((nm, n), np.nan)
+        used = np.full((nm, n), np.nan)
+        for j in range(n):
+            for c, v in zip(self.coords, lengths[:, j], strict=True):
+                c.setValue(s, float(v), False)
+                c.setSpeedValue(s, 0.0)
+            # the activation state, and the excitation (the muscle's control) for muscles whose
+            # activation is their excitation (RigidTendonMuscle, ignore_activation_dynamics)
+            for m in self.muscles:
+                m.setActivation(s, activation)
+            self.model.realizeVelocity(s)
+            controls = self.model.updControls(s)
+            for m in self.muscles:
+                m.setControls(runtime.opensim().Vector(1, float(activation)), controls)
+            self.model.setControls(s, controls)
+            ok = np.ones(nm, dtype=bool)
+            for i, m in enumerate(self.muscles):
+                try:
+                    m.computeEquilibrium(s)
+                except Exception:  # no equilibrium at this length
+                    ok[i] = False
+            try:
+                self.model.realizeDynamics(s)
+            except Exception:
+                continue
+            for i, m in enumerate(self.muscles):
+                if ok[i]:
+                    f = float(m.getTendonForce(s))
+                    if math.isfinite(f):
+                        out[i, j] = f
+                        used[i, j] = float(m.getActivation(s))
+        return out, used
+
+
+def _muscle_elements(doc, names: list[str]) -> dict[str, etree._Element]:
+    """The ForceSet XML element of each named muscle (4.x document)."""
+    out: dict[str, etree._Element] = {}
+    fs = doc.model.find("ForceSet")
+    objects = fs.find("objects") if fs is not None else None
+    if objects is not None:
+        for el in objects:
+            if isinstance(el.tag, str) and el.get("name") in names:
+                out.setdefault(el.get("name"), el)
+    return out
+
+
+def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_lengths: np.ndarray,
+                    n_failed: int, seed: int) -> list[MuscleSample]:
+    """OpenSim's measurements of the ``supported`` muscles of ``pm`` (indices into its muscles), in
+    order: lengthranges from ``all_lengths`` (:func:`sample_lengths`), static forces over them on the
+    bench, time constants and force-velocity curves."""
+    doc = load_document(osim_path)
+    names = [pm.muscle_names[i] for i in supported]
+    elements = _muscle_elements(doc, names)
+    missing = [n for n in names if n not in elements]
+    if missing:
+        raise ModelFileError(f"{osim_path}: muscle(s) {', '.join(missing)} not found in the ForceSet")
+    bench = _Bench([elements[n] for n in names])
+    lr, notes = _lengthranges(all_lengths, supported, names, n_failed)
+    grid = lr[:, :1] + (lr[:, 1:] - lr[:, :1]) * np.linspace(0.0, 1.0, N_EVAL)[None, :]
+    f_act, a_act = bench.forces(grid, 1.0)
+    f_pas, a_pas = bench.forces(grid, 0.0)
+    u = np.linspace(-FV_FIT_RANGE, FV_FIT_RANGE, 201)
+    tasks = []
+    for k, (name, i) in enumerate(zip(names, supported, strict=True)):
+        m = bench.muscles[k]
+        type_name = pm.muscle_types[i]
+        nt = notes[name]
+        if elements[name].findtext("appliesForce", "true").strip().lower() in ("false", "0") or \
+                elements[name].findtext("isDisabled", "false").strip().lower() in ("true", "1"):
+            nt.append("the muscle is disabled in the OpenSim model (fitted as if enabled)")
+        for what, f, a_used, target in (("activation 1", f_act[k], a_act[k], 1.0),
+                                        ("activation 0", f_pas[k], a_pas[k], 0.0)):
+            bad = int(np.isnan(f).sum())
+            if bad:
+                nt.append(f"OpenSim found no static equilibrium at {bad} of {N_EVAL} lengths at {what}")
+            a_ok = a_used[np.isfinite(a_used)]
+            if a_ok.size and abs(float(np.median(a_ok)) - target) > 1e-9:
+                nt.append(f"OpenSim clamps {what} to {float(np.median(a_ok)):.3g}")
+        timeconst = _activation_times(m, type_name, nt)
+        fv, vmax_os, fv_notes = _force_velocity(m, type_name, u)
+        nt.extend(fv_notes)
+        tasks.append(MuscleSample(
+            name=name, type=type_name, force=_prop(m, "max_isometric_force"),
+            lopt=_prop(m, "optimal_fiber_length"), lts=_prop(m, "tendon_slack_length"),
+            alpha=_prop(m, "pennation_angle_at_optimal", 0.0), vmax_os=vmax_os, lengthrange=lr[k].copy(),
+            lengths=grid[k].copy(), active=f_act[k].copy(), passive=f_pas[k].copy(), fv_u=u, fv=fv,
+            timeconst=(float(timeconst[0]), float(timeconst[1])), notes=nt, seed=seed,
+        ))
+    return tasks

@@ -1,0 +1,204 @@
+"""Wrap objects: a MuJoCo wrap geom, with a side site, for each path that uses one.
+
+Wrap objects become wrap geoms, one per path that uses them (so :mod:`o2m.convert.wrapfit` can fit
+each path's own): spheres and cylinders as they are; an ellipsoid as the sphere or cylinder
+nearest to it; a torus is left out. Each is placed on the path segment (within the wrap's
+OpenSim range) that passes closest to it at the reference pose, with a side site on the side
+that segment passes or that the quadrant names (MuJoCo 4.0: the tendon wraps the way the
+straight path through the side site goes). Sizes are metres; on ground, OpenSim's Y-up frame is
+mapped to MuJoCo's Z-up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from o2m.convert.builder import Approximation
+from o2m.convert.pathpoints import PathContext
+from o2m.mj import mjcf_text
+from o2m.osim.paths import Path, WrapObject
+from o2m.transforms import Transform, matrix_to_quat
+
+#: Distance of a side site from a wrap geom's centre, in radii.
+SIDE_SITE_DISTANCE = 2.0
+
+
+@dataclass
+class _PlacedWrap:
+    segment: int  # the path segment (between points segment and segment+1) it wraps
+    geom: str
+    sidesite: str
+
+
+@dataclass
+class PathGeom:
+    """A wrap geom of one tendon (MuJoCo names), for :mod:`o2m.convert.wrapfit`: ``kind`` is the OpenSim
+    element it stands for (``WrapSphere``, ``WrapCylinder`` or ``WrapEllipsoid``; a
+    ConditionalPathPoint's sphere is not fitted), ``source`` its OpenSim name and ``body`` the OpenSim body it is on."""
+
+    tendon: str
+    geom: str
+    sidesite: str
+    kind: str
+    source: str
+    body: str = ""
+
+
+class WrapGeoms:
+    """The wrap geoms of a model's paths and their side sites."""
+
+    def __init__(self, ctx: PathContext, wraps: dict[str, WrapObject]):
+        self.ctx = ctx
+        self.b = ctx.b
+        self.wraps = wraps
+        self.geoms: dict[str, str | None] = {}  # wrap object -> MuJoCo geom name (None: not converted)
+        #: geom name -> (its frame in its OpenSim body, MuJoCo kind, radius)
+        self.geom_frames: dict[str, tuple[Transform, str, float]] = {}
+
+    def geom(self, wrap: WrapObject) -> str | None:
+        """A new MuJoCo geom for a wrap object (each path gets its own, so fitting one path's wrap
+        leaves the others alone), or None when it has no MuJoCo twin (a torus)."""
+        if self.geoms.get(wrap.name, "") is None:
+            return None
+        first_use = wrap.name not in self.geoms
+        x = self.ctx.in_world(wrap.body, wrap.frame)
+        kind, size, extra_rot = wrap.kind, None, np.eye(3)
+        if kind == "sphere":
+            size = [wrap.radius, 0, 0]
+        elif kind == "cylinder":
+            size = [wrap.radius, max(wrap.length, 1e-6) / 2, 0]
+        elif kind == "ellipsoid":
+            d = np.asarray(wrap.dimensions, dtype=float)
+            order = np.argsort(d)
+            if d[order[2]] > 1.5 * d[order[1]]:  # elongated: a cylinder along its long axis
+                kind, r = "cylinder", float((d[order[0]] + d[order[1]]) / 2)
+                size = [r, float(d[order[2]]), 0]
+                long_axis = np.eye(3)[order[2]]
+                extra_rot = _rotation_taking_z_to(long_axis)
+                what = f"ellipsoid {d.tolist()} wrapped as a cylinder of radius {r:.4g} m"
+                err = float(np.max(np.abs(d[order[:2]] - r)))
+            else:
+                kind, r = "sphere", float(d.mean())
+                size = [r, 0, 0]
+                what = f"ellipsoid {d.tolist()} wrapped as a sphere of radius {r:.4g} m"
+                err = float(np.max(np.abs(d - r)))
+            if first_use:
+                self.b.result.approximations.append(Approximation("WrapEllipsoid", wrap.name, what, err, "m",
+                                                                  "largest semi-axis difference"))
+        else:
+            self.b.result.notes.append(f"WrapTorus '{wrap.name}' is not converted (MuJoCo cannot wrap a torus)")
+            self.geoms[wrap.name] = None
+            return None
+        x = x @ Transform(extra_rot)
+        name = self.ctx.unique(f"wrap_{wrap.name}")
+        gtype = mujoco.mjtGeom.mjGEOM_SPHERE if kind == "sphere" else mujoco.mjtGeom.mjGEOM_CYLINDER
+        quat = matrix_to_quat(x.rot)
+        self.b.bodies[wrap.body].add_geom(name=name, type=gtype, size=size, pos=x.pos, quat=quat,
+                                          contype=0, conaffinity=0, group=3, density=0, rgba=[0.3, 0.7, 0.9, 0.4])
+        self.ctx.exact[("geom", name)] = {"pos": x.pos, "quat": np.asarray(quat, dtype=float),
+                                          "size": np.asarray(size[:2] if kind == "cylinder" else size[:1],
+                                                             dtype=float)}
+        self.geoms[wrap.name] = name
+        self.geom_frames[name] = (wrap.frame @ Transform(extra_rot), kind, float(size[0]))
+        return name
+
+    def place(self, path: Path, sites_ground: np.ndarray) -> list[tuple[int, WrapObject]]:
+        """Choose, for each wrap of ``path``, the segment (within the wrap's OpenSim range) it acts
+        on at the reference pose. MuJoCo wraps one geom per segment, so wraps are assigned closest
+        first: a wrap whose closest segment is taken goes to its next closest free one when that
+        passes within two of its sizes of it, and is left out (noted) otherwise."""
+        n = len(path.points)
+        candidates = []  # (distance, wrap order, segment, wrap, size)
+        for order, pw in enumerate(path.wraps):
+            wrap = self.wraps.get(pw.wrap)
+            if wrap is None:
+                raise self.b.doc.error(path.element, f"wraps over '{pw.wrap}', which no body defines")
+            if not wrap.active:
+                continue
+            first, last = wrap_segments(pw.range, n)
+            centre = (self.b.ground_frames[wrap.body] @ wrap.frame).pos
+            size = max(wrap.radius, float(np.max(wrap.dimensions)), wrap.outer_radius)
+            for seg in range(first, last + 1):
+                d = segment_distance(sites_ground[seg], sites_ground[seg + 1], centre)
+                candidates.append((d, order, seg, wrap, size))
+        candidates.sort(key=lambda c: (c[0], c[1]))
+        best = {}
+        for d, order, _, _, _ in candidates:
+            best.setdefault(order, d)
+        chosen: dict[int, WrapObject] = {}
+        placed: set[int] = set()
+        for d, order, seg, wrap, size in candidates:
+            if order in placed or seg in chosen or d > best[order] + 2.0 * size:
+                continue
+            chosen[seg] = wrap
+            placed.add(order)
+        for order, pw in enumerate(path.wraps):
+            if order in best and order not in placed:
+                self.b.result.notes.append(f"{path.owner}: wrap object '{pw.wrap}' left out (MuJoCo wraps one "
+                                           f"geom per path segment and the segments near it are taken)")
+        return sorted(chosen.items(), key=lambda t: t[0])
+
+    def side_site(self, wrap: WrapObject, geom: str, a: np.ndarray, b: np.ndarray) -> str:
+        """A side site for ``geom``, on the side the segment a-b (ground, reference pose) passes,
+        or, for a wrap with a quadrant, on the side the quadrant names (for a cylinder, at the
+        height along its axis where that segment passes closest)."""
+        frame, kind, radius = self.geom_frames[geom]
+        x_ground = self.b.ground_frames[wrap.body] @ frame
+        local_a, local_b = x_ground.inverse().apply(a), x_ground.inverse().apply(b)
+        seg = local_b - local_a
+        t = np.clip(-local_a @ seg / max(seg @ seg, 1e-18), 0.0, 1.0)
+        closest = local_a + t * seg
+        if wrap.quadrant not in ("all", ""):
+            sign = -1.0 if wrap.quadrant.startswith("-") else 1.0
+            axis_wrap = sign * np.eye(3)["xyz".index(wrap.quadrant[-1].lower())]  # in the wrap object's frame
+            direction = (frame.rot.T @ wrap.frame.rot) @ axis_wrap
+        else:
+            direction = closest.copy()
+        if kind == "cylinder":
+            direction = direction * np.array([1.0, 1.0, 0.0])
+        if np.linalg.norm(direction) < 1e-12:
+            direction = closest * np.array([1.0, 1.0, 0.0]) if kind == "cylinder" else closest.copy()
+        if np.linalg.norm(direction) < 1e-12:
+            direction = np.array([1.0, 0.0, 0.0])
+        direction = direction / np.linalg.norm(direction)
+        local = direction * radius * SIDE_SITE_DISTANCE
+        if kind == "cylinder":
+            local[2] = closest[2]
+        pos = self.ctx.in_world(wrap.body, frame).apply(local)
+        name = self.ctx.unique(f"{geom}_side")
+        self.b.bodies[wrap.body].add_site(name=name, pos=pos, size=[0.001, 0, 0], group=5)
+        self.b.exact[("site", name)] = {"pos": pos}
+        return name
+
+
+def wrap_segments(wrap_range: tuple[int, int], n_points: int) -> tuple[int, int]:
+    """The first and last path segment (0-based; segment k joins points k and k+1) that a wrap
+    with OpenSim's 1-based point ``range`` (-1: all) may act on, of a path of ``n_points``."""
+    lo, hi = wrap_range
+    first = 0 if lo < 1 else lo - 1
+    last = n_points - 2 if hi < 1 else min(hi - 1, n_points - 1) - 1
+    return first, last
+
+
+def segment_distance(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
+    """Distance (m) from point ``c`` to the segment a-b."""
+    ab = b - a
+    t = np.clip((c - a) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0)
+    return float(np.linalg.norm(a + t * ab - c))
+
+
+def _rotation_taking_z_to(axis: np.ndarray) -> np.ndarray:
+    """A rotation matrix (3, 3) whose third column is the unit vector ``axis``."""
+    z = axis / np.linalg.norm(axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def restore_geom_precision(xml: str, exact: dict[tuple[str, str], dict[str, np.ndarray]]) -> str:
+    """MJCF text with the listed geoms' attributes written in full (:mod:`o2m.mj.mjcf_text`)."""
+    return mjcf_text.restore_numbers(xml, exact, ("geom",))

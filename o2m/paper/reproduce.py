@@ -1,0 +1,126 @@
+"""The paper's whole step order, in one place: references, conversion and fits, speed, figures.
+
+``python -m o2m paper`` only calls :func:`reproduce` and prints :func:`format_summary`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from o2m.paper.dataset import load_dataset, make_dataset
+from o2m.paper.figures import make_figures
+from o2m.paper.pipeline import FULL, QUICK, run_paper
+from o2m.paper.speed import measure_speed
+
+__all__ = ["PaperRun", "format_summary", "reproduce"]
+
+
+@dataclass
+class PaperRun:
+    """What :func:`reproduce` measured: the pipeline's summary, the speed record, the figure files."""
+
+    summary: dict
+    speed: dict
+    figures: list[Path]
+    figure_dir: Path
+
+
+def reproduce(
+    data: str | os.PathLike = "data/mobl_arms",
+    out: str | os.PathLike = "out",
+    figures: str | os.PathLike = "figures",
+    *,
+    quick: bool = False,
+    regenerate_opensim: bool = False,
+    refit: bool = False,
+    executor=None,
+    n_sets: int = 100,
+    seed: int = 2020,
+    timeout: float = 600.0,
+    log: Callable[[str], None] = print,
+) -> PaperRun:
+    """Reproduce the paper: (1) the OpenSim references (stored in ``data``, or regenerated),
+    (2) conversion, muscle force fit, CMA-ES and corrective controls (:func:`run_paper`),
+    (3) the speed of both simulators, (4) the figures.
+
+    ``quick`` uses small budgets and writes under ``out/quick/``; otherwise results go to
+    ``data/results`` and figures to ``figures``. The speed measured here replaces the stored
+    ``speed.json`` only in quick mode or with ``refit``; otherwise it goes to ``out/speed.json``.
+    ``executor`` (a concurrent.futures executor, e.g. Dask's) runs the OpenSim simulations and
+    CMA-ES candidates. ``log`` gets one line per step.
+    """
+    data, out = Path(data), Path(out)
+    if regenerate_opensim:
+        if quick:
+            data = out / "quick-data"
+        log(f"[1/4] regenerating OpenSim references into {data} ({4 if quick else n_sets} sets)")
+        make_dataset(data, n_sets=4 if quick else n_sets, seed=seed, timeout=timeout, executor=executor)
+    else:
+        log(f"[1/4] using the stored OpenSim references in {data}")
+    ds = load_dataset(data)
+    log(
+        f"      {len(ds.ok)} sets, {int(ds.ok.sum())} succeeded in OpenSim, failures: "
+        + ("; ".join(f"set {i} {st}: {why[:80]}" for i, st, why in ds.failures()) or "none")
+    )
+    results = out / "quick" / "results" if quick else data / "results"
+    figure_dir = out / "quick" / "figures" if quick else Path(figures)
+    log(f"[2/4] converting, fitting parameters ({'quick' if quick else 'full'} mode) and corrective controls")
+    summary = run_paper(
+        data,
+        settings=QUICK if quick else FULL,
+        model_dir=out / "paper",
+        results_dir=results,
+        refit=refit or quick,
+        executor=executor,
+    )
+    log("[3/4] timing one 1-s simulation in OpenSim and in MuJoCo")
+    speed = measure_speed(str(data), n_sets=1 if quick else 5, model_dir=str(out / "paper"))
+    # A timing differs on every run: it replaces the stored one (and its figure) only with the
+    # fits, so rerunning the main job leaves the tracked files alone unless a result changed.
+    stored = results.parent / "speed.json"
+    speed_file = stored if quick or refit or not stored.exists() else out / "speed.json"
+    speed_file.parent.mkdir(parents=True, exist_ok=True)
+    speed_file.write_text(json.dumps(speed, indent=1) + "\n")
+    log(f"[4/4] figures -> {figure_dir}")
+    written = make_figures(results, figure_dir, speed_file=stored)
+    return PaperRun(summary, speed, written, figure_dir)
+
+
+def format_summary(run: PaperRun) -> str:
+    """The measured numbers of a :func:`reproduce` run, as the command line prints them."""
+    s, sp = run.summary, run.speed
+    lines: list[str] = []
+    e = s["mean_error_rad"]
+    lines.append(
+        f"Mean absolute joint error on {s['n_test']} test sets (rad): converted {e['converted']:.4f}, "
+        f"muscle forces fitted {e['force_fitted']:.4f}, CMA-ES fitted {e['fitted']:.4f}, "
+        f"with corrections {e['corrected']:.4f}"
+    )
+    lines.append(f"  {'DoF':15s} {'converted':>10s} {'forces':>10s} {'CMA-ES':>10s} {'corrected':>10s}")
+    for d, v in s["per_joint_error_rad"].items():
+        lines.append(
+            f"  {d:15s} {v['converted']:10.4f} {v['force_fitted']:10.4f} {v['fitted']:10.4f} {v['corrected']:10.4f}"
+        )
+    mf = s["muscle_forces"]
+    lines.append(
+        f"Muscle force fit: RMS error {mf['rms_held_out_start']:.2f} -> {mf['rms_held_out']:.2f} % of max isometric "
+        f"force on held-out states ({mf['kept']} of {mf['muscles']} muscles changed)"
+    )
+    lines.append(f"Mean absolute correction: {s['mean_abs_correction']:.4f}")
+    f = s["fit"]
+    lines.append(
+        f"CMA-ES: training cost {f['cost0']:.4g} -> {f['cost']:.4g} (best seen {f['best_training_cost']:.4g}), "
+        f"validation cost {f['validation_cost0']:.4g} -> {f['validation_cost']:.4g}; {f['generations']} generations, "
+        f"{f['evaluations']} candidates, {f['wall_time_s']:.0f} s"
+    )
+    lines.append(f"Fitted model: {s['fitted_xml']}")
+    lines.append(
+        f"Speed: OpenSim {sp['opensim_median_s']:.2f} s, MuJoCo {sp['mujoco_median_s']:.4f} s per 1-s "
+        f"simulation: {sp['ratio']:.0f}x; batched rollouts {sp['rollout_per_s']:.0f} simulations/s"
+    )
+    lines.append(f"{len(run.figures)} figure files in {run.figure_dir}")
+    return "\n".join(lines)
