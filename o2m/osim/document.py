@@ -8,6 +8,7 @@ the user's original file where the element (matched by tag and name) can be foun
 
 from __future__ import annotations
 
+import re
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -154,14 +155,21 @@ class OsimDocument:
         raise self.error(owner, f"<{socket.tag}> refers to '{target}', which cannot be resolved: {why}")
 
 
+#: OpenSim names some nested classes' tags ``Outer::Inner`` (``<HuntCrossleyForce::ContactParametersSet>``),
+#: which is not an XML name: read as ``Outer__Inner`` (the document's lines stay where they are).
+_NESTED_TAG = re.compile(rb"<(/?)([A-Za-z_][\w.-]*)::(?=[A-Za-z_])")
+NESTED_SEPARATOR = "__"
+
+
 def _parse_xml(path: Path) -> etree._ElementTree:
     if not path.exists():
         raise ModelFileError(f"{path}: no such file")
     if path.is_dir():
         raise ModelFileError(f"{path}: is a folder, expected an .osim file")
     try:
+        data = _NESTED_TAG.sub(rb"<\1\2" + NESTED_SEPARATOR.encode(), path.read_bytes())
         parser = etree.XMLParser(remove_blank_text=False, huge_tree=True)
-        return etree.parse(str(path), parser)
+        return etree.ElementTree(etree.fromstring(data, parser, base_url=str(path)))
     except etree.XMLSyntaxError as exc:
         line = exc.lineno if exc.lineno else "?"
         raise ModelFileError(f"{path}:{line}: not well-formed XML: {exc.msg}") from None

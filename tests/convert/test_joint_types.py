@@ -531,6 +531,95 @@ def test_custom_linear_in_disguise(tmp_path):
         ["coordinate"] + ["linear"] * 4)
 
 
+def _steps_cleanly(model: mujoco.MjModel, seconds: float = 0.5) -> None:
+    """Falls under gravity for ``seconds`` without a NaN or a solver warning."""
+    data = mujoco.MjData(model)
+    for _ in range(int(seconds / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+    assert np.all(np.isfinite(data.qpos)) and not data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+
+
+def test_mirrored_coordinates(tmp_path):
+    """Coordinates that reach their only axes through -q + c (the left side of a mirrored model):
+    their joints turn and slide about reversed axes and still carry the coordinates' values,
+    exactly, with no extra joint or equality."""
+    axes = [
+        Axis("rotation1", (0.0, 0.0, 1.0), "c_a", linear(-1.0, 0.2)),
+        Axis("rotation2", (1.0, 0.0, 0.0), "c_b", linear(-1.0, 0.0)),
+        Axis("rotation3", (0.0, 1.0, 0.0), None, ZERO),
+        Axis("translation1", (1.0, 0.0, 0.0), None, ZERO),
+        Axis("translation2", (0.0, 1.0, 0.0), "c_t", linear(-1.0, 0.05)),
+        Axis("translation3", (0.0, 0.0, 1.0), None, ZERO),
+    ]
+    coords = [Coord("c_a", ROT_RANGE, default=0.3), Coord("c_b", ROT_RANGE), Coord("c_t", TRANS_RANGE)]
+    joints = [
+        JointSpec("j1", "CustomJoint", "ground", "b1", OFFSETS[0], coords, axes),
+        typed_joint("PinJoint", "j2", "b1", "b2", OFFSETS[1]),
+    ]
+    r = run(build_model(tmp_path / "mirrored.osim", joints), tmp_path)
+    assert_exact(r)
+    rel = {j.name: j.relation for j in r.conv.report.joints}
+    assert rel["c_a"] == rel["c_b"] == rel["c_t"] == "coordinate (mirrored)"
+    assert r.mj.njnt == 4 and r.mj.neq == 0
+    assert qpos0(r.mj, "c_a") == pytest.approx(0.3)
+    _steps_cleanly(r.mj)
+
+
+@pytest.mark.parametrize("second", ["none", "spline"])
+def test_coordinate_through_functions_only(second, tmp_path):
+    """A coordinate that moves its joint's axes only through other functions (MoBL-ARMS's wrist:
+    half the flexion on one axis; here a slope-0.5 line, and a spline on a second axis): its
+    MuJoCo joint still carries its value, a second joint on the same axis adds f(q) - q, and the
+    frames match OpenSim (exactly where the functions are linear)."""
+    x = np.linspace(-1.3, 1.1, 7)
+    spline = xy_function("SimmSpline", x, 0.3 * np.sin(x))
+    axes = [
+        Axis("rotation1", (0.0, 0.0, 1.0), "c_a", linear(0.5, 0.1)),
+        Axis("rotation2", (1.0, 0.0, 0.0), "c_a" if second == "spline" else None,
+             spline if second == "spline" else ZERO),
+        Axis("rotation3", (0.0, 1.0, 0.0), None, ZERO),
+        Axis("translation1", (1.0, 0.0, 0.0), "c_t", linear(2.0, 0.0)),
+        Axis("translation2", (0.0, 1.0, 0.0), None, ZERO),
+        Axis("translation3", (0.0, 0.0, 1.0), None, ZERO),
+    ]
+    coords = [Coord("c_a", ROT_RANGE, default=0.2), Coord("c_t", TRANS_RANGE)]
+    joints = [
+        JointSpec("j1", "CustomJoint", "ground", "b1", OFFSETS[0], coords, axes),
+        typed_joint("PinJoint", "j2", "b1", "b2", OFFSETS[1]),
+    ]
+    r = run(build_model(tmp_path / "through.osim", joints), tmp_path)
+    if second == "none":
+        assert_exact(r, allow_approx=True)
+        assert {a.what.split("'")[1] for a in r.conv.report.approximations} == {"j1_rotation1", "j1_translation1"}
+    else:
+        assert_within_recorded(r, lever_arm(joints))
+    rec = {j.name: j for j in r.conv.report.joints}
+    assert rec["c_a"].relation == rec["c_t"].relation == "coordinate (complement)"
+    assert rec["c_a"].axis == "rotation1" and rec["j1_rotation1"].driven_by == "c_a"
+    assert rec["j1_rotation1"].relation == "linear" and rec["j1_translation1"].relation == "linear"
+    assert qpos0(r.mj, "c_a") == pytest.approx(0.2)
+    # the coordinate joint and its complement share axis and anchor, so their angles add
+    a, b = jid(r.mj, "c_a"), jid(r.mj, "j1_rotation1")
+    assert np.allclose(r.mj.jnt_axis[a], r.mj.jnt_axis[b]) and np.allclose(r.mj.jnt_pos[a], r.mj.jnt_pos[b])
+    _steps_cleanly(r.mj)
+
+
+def test_zero_width_range_coordinate(tmp_path):
+    """A coordinate whose range has no width still has its identity axis recognised."""
+    axes = [
+        Axis("rotation1", (0.0, 0.0, 1.0), "c_a", IDENTITY),
+        Axis("rotation2", (1.0, 0.0, 0.0), None, ZERO),
+        Axis("rotation3", (0.0, 1.0, 0.0), None, ZERO),
+        Axis("translation1", (1.0, 0.0, 0.0), None, ZERO),
+        Axis("translation2", (0.0, 1.0, 0.0), None, ZERO),
+        Axis("translation3", (0.0, 0.0, 1.0), None, ZERO),
+    ]
+    joints = [JointSpec("j1", "CustomJoint", "ground", "b1", OFFSETS[0], [Coord("c_a", (0.4, 0.4), default=0.4)],
+                        axes)]
+    conv = convert(build_model(tmp_path / "flat.osim", joints), tmp_path / "out", convert_options())
+    assert {j.name: j.relation for j in conv.report.joints}["c_a"] == "coordinate"
+
+
 def test_nested_offset_frames_and_joint_order(tmp_path):
     """A joint whose parent is an offset frame of an offset frame on a body (component paths
     '..' and '/bodyset/b1/f1'), a child offset frame owned by the child body, and a JointSet
