@@ -132,6 +132,19 @@ def cmd_paper(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_gallery(a: argparse.Namespace) -> int:
+    """Convert the whole public corpus and write docs/models.md (:mod:`o2m.gallery`)."""
+    from o2m.gallery import run_gallery
+
+    rows = run_gallery(a.out, a.docs, quick=_quick(a), poses=a.poses, timeout=a.timeout, only=a.only or None)
+    ok = sum(r.status == "converted" for r in rows)
+    print(f"{ok} of {len(rows)} models convert -> {Path(a.docs) / 'models.md'}")
+    for r in rows:
+        if r.status != "converted":
+            print(f"  {r.model}: {r.status}")
+    return 0
+
+
 def cmd_figures(a: argparse.Namespace) -> int:
     from o2m.paper.figures import make_figures
 
@@ -224,6 +237,14 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--seed", type=int, default=2020)
     pp.add_argument("--timeout", type=float, default=600.0)
     pp.set_defaults(func=cmd_paper)
+    g = sub.add_parser("gallery", help="convert the whole model corpus and write docs/models.md")
+    g.add_argument("--out", default="out/gallery", help="converted models (default: out/gallery/)")
+    g.add_argument("--docs", default="docs", help="where models.md and the thumbnails go (default: docs/)")
+    g.add_argument("--quick", action="store_true", help="the converter's quick wrap-fit sizes")
+    g.add_argument("--poses", type=int, default=50, help="random poses per comparison")
+    g.add_argument("--timeout", type=float, default=1800.0, help="seconds per model")
+    g.add_argument("--only", nargs="*", help="model names (file stems) to do")
+    g.set_defaults(func=cmd_gallery)
     fg = sub.add_parser("figures", help="redraw the figures from stored results")
     fg.add_argument("--results", default="data/mobl_arms/results")
     fg.add_argument("--figures", default="figures")

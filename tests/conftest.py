@@ -6,13 +6,14 @@ import os
 
 import pytest
 
-from tests.helpers import mirror
+from tests.helpers import local_mirror
 
 
 @pytest.fixture(autouse=True, scope="session")
 def _model_mirror_and_cache(tmp_path_factory):
-    """Point o2m at the local mirror and, unless set, at a cache private to this test session."""
-    m = mirror()
+    """Point o2m at a local mirror when there is one (else the models are downloaded) and, unless
+    set, at a cache private to this test session."""
+    m = local_mirror()
     saved = {k: os.environ.get(k) for k in ("O2M_MODEL_MIRROR", "O2M_CACHE")}
     if m is not None:
         os.environ["O2M_MODEL_MIRROR"] = str(m)

@@ -6,6 +6,7 @@ copy of the models) and ``O2M_QUICK`` (CI's quick wrap fits).
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
@@ -13,7 +14,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from o2m import models
 from o2m.convert import ConvertOptions
+from o2m.errors import FetchError
 
 #: CI's quick mode: the converter's quick wrap-fit sizes, the notebooks' small budgets.
 QUICK = os.environ.get("O2M_QUICK", "") not in ("", "0")
@@ -24,20 +27,43 @@ def convert_options(**kw) -> ConvertOptions:
     return ConvertOptions(**{"quick": QUICK, **kw})
 
 
-#: Where the third-party models are mirrored: $O2M_MODEL_MIRROR, else shared/models beside the clone.
+#: A local copy of the third-party models CI lays beside the clone (``shared/models``).
 MIRROR_CANDIDATES = [Path(__file__).resolve().parents[2] / "shared" / "models"]
+#: A small registry file that tells whether the models can be had at all.
+PROBE = "opensim-models/Models/Arm26/arm26.osim"
 
 
-def mirror() -> Path | None:
+def local_mirror() -> Path | None:
+    """A local folder copy of the models: ``$O2M_MODEL_MIRROR`` when it is a folder, else
+    ``shared/models`` beside the clone; None when there is none (the models are then downloaded)."""
     env = os.environ.get("O2M_MODEL_MIRROR")
     if env:
-        return Path(env)
+        return None if env.startswith(("http://", "https://")) else Path(env)
     return next((p for p in MIRROR_CANDIDATES if (p / "registry.tsv").exists()), None)
 
 
-def require_mirror() -> None:
-    if mirror() is None:
-        pytest.skip("no local model mirror (set O2M_MODEL_MIRROR)")
+@functools.cache
+def _unavailable() -> str | None:
+    try:
+        models.fetch(PROBE)
+    except FetchError as exc:
+        return (f"the models can be neither copied from a mirror nor downloaded ({exc}); connect to the "
+                "internet or set O2M_MODEL_MIRROR to a local copy laid out like o2m/registry.tsv")
+    return None
+
+
+def require_models() -> None:
+    """Skip only when the models cannot be had: no mirror and no download. A fresh machine with
+    internet fetches them from the registry's public URLs (hash-checked, cached)."""
+    reason = _unavailable()
+    if reason:
+        pytest.skip(reason)
+
+
+def model_file(registry_path: str) -> Path:
+    """The cached copy of one registry file (fetched from the mirror or its URL)."""
+    require_models()
+    return models.fetch(registry_path)
 
 
 def approximation_budget(xml, approximations) -> dict[str, tuple[float, float]]:

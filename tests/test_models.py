@@ -9,19 +9,25 @@ import pytest
 
 from o2m import models
 from o2m.errors import FetchError
-from tests.helpers import mirror as local_mirror
-
-
-def _real_mirror() -> Path | None:
-    """The shared local copy of the registry files, wherever this checkout sits."""
-    c = local_mirror()
-    return c if c is not None and (c / models.BUNDLED["arm26"]).is_file() else None
-
-
-REAL_MIRROR = _real_mirror()
-needs_mirror = pytest.mark.skipif(REAL_MIRROR is None, reason="no local copy of the models (shared/models)")
+from tests.helpers import local_mirror, require_models
 
 SMALL = ["mobl-arms/license.txt", "opensim-models/Models/Arm26/arm26.osim"]
+
+
+@pytest.fixture(scope="session")
+def real_copy(tmp_path_factory) -> Path:
+    """A folder laid out like the registry holding real files: the local mirror when there is one,
+    else a cache filled from the registry's URLs (a cache is laid out like a mirror)."""
+    local = local_mirror()
+    if local is not None and (local / models.BUNDLED["arm26"]).is_file():
+        return local
+    require_models()
+    folder = tmp_path_factory.mktemp("downloaded")
+    for p in SMALL:
+        models.fetch(p, cache=folder)
+    for name in ("arm26", "mobl_arms"):
+        models.fetch_model_with_geometry(name, cache=folder, progress=False)
+    return folder
 
 
 @pytest.fixture
@@ -34,14 +40,12 @@ def cache(tmp_path, monkeypatch) -> Path:
 
 
 @pytest.fixture
-def mirror(tmp_path) -> Path:
+def mirror(tmp_path, real_copy) -> Path:
     """A temporary mirror holding a couple of real registry files."""
-    if REAL_MIRROR is None:
-        pytest.skip("no local copy of the models (shared/models)")
     folder = tmp_path / "mirror"
     for p in SMALL:
         (folder / p).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(REAL_MIRROR / p, folder / p)
+        shutil.copyfile(real_copy / p, folder / p)
     return folder
 
 
@@ -137,21 +141,19 @@ def test_valid_cached_file_is_reused_without_the_mirror(cache, mirror):
     assert first.stat().st_mtime_ns == mtime
 
 
-@needs_mirror
-def test_fetch_model_arm26(cache):
-    res = models.fetch_model_with_geometry("arm26", mirror=REAL_MIRROR, progress=False)
+def test_fetch_model_arm26(cache, real_copy):
+    res = models.fetch_model_with_geometry("arm26", mirror=real_copy, progress=False)
     assert res.osim == cache / models.BUNDLED["arm26"] and res.osim.is_file()
     assert res.geometry_dir == cache / "opensim-models" / "Geometry"
     meshes = models.referenced_meshes(res.osim)
     assert meshes and all((res.geometry_dir / m).is_file() for m in meshes)
     # only what the model needs, not the whole geometry folder
     assert len(_files(res.geometry_dir)) == len(meshes)
-    assert models.fetch_model("arm26", mirror=REAL_MIRROR, geometry=False) == res.osim
+    assert models.fetch_model("arm26", mirror=real_copy, geometry=False) == res.osim
 
 
-@needs_mirror
-def test_fetch_model_mobl_arms(cache):
-    res = models.fetch_model_with_geometry("mobl_arms", mirror=REAL_MIRROR, progress=False)
+def test_fetch_model_mobl_arms(cache, real_copy):
+    res = models.fetch_model_with_geometry("mobl_arms", mirror=real_copy, progress=False)
     assert res.osim.parent / "Geometry" == res.geometry_dir  # OpenSim's own search finds the meshes
     meshes = models.referenced_meshes(res.osim)
     assert len(meshes) > 20 and all((res.geometry_dir / m).is_file() for m in meshes)
@@ -159,11 +161,14 @@ def test_fetch_model_mobl_arms(cache):
         assert (res.osim.parent / extra).is_file()
 
 
-@needs_mirror
 def test_every_registry_row_matches_the_mirror():
+    """The local mirror (when there is one: it is what this test checks) holds every registry file."""
+    local = local_mirror()
+    if local is None:
+        pytest.skip("no local mirror to check (O2M_MODEL_MIRROR or shared/models beside the clone)")
     bad = []
     for entry in models.get_registry():
-        f = REAL_MIRROR / entry.path
+        f = local / entry.path
         if not f.is_file():
             bad.append(f"{entry.path}: missing")
         elif models.sha256_of(f) != entry.sha256:

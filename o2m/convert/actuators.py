@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
-from o2m.convert.builder import Approximation, MjcfBuilder
+from o2m.convert.builder import MjcfBuilder
 from o2m.convert.force_context import (
     N_POSES,
     ForceConversion,
@@ -32,6 +32,7 @@ from o2m.convert.force_context import (
     _text,
     _vector,
 )
+from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
 from o2m.transforms import OSIM_TO_MJ, Transform
 

@@ -18,12 +18,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from o2m.convert.builder import JointRecord
 from o2m.convert.coordinates import Driver, as_linear, relative
 from o2m.convert.coupling_plan import MAX_BODY_DOFS, CoupledAxis
 from o2m.convert.couplings import polynomial_slope_errors
 from o2m.convert.pathpoints import PathContext
 from o2m.convert.polyfit import fit_polynomial
+from o2m.convert.records import JointRecord
 from o2m.osim.paths import Path, PathPoint
 from o2m.transforms import Transform
 
@@ -59,7 +59,7 @@ CARRIER_TARGET = 1e-5
 #: Derivative target (m per coordinate unit) of those fits, or None: minimax on the location only.
 #: None, measured: these splines' curvature jumps at the knee's default angle (knots 0, 1.7e-4 and
 #: 3.5e-4 rad), so a derivative-aware minimax (:func:`o2m.convert.couplings.fit_couplings`, slope targets)
-#: spends the fit there and loses elsewhere: with 0.5 mm/rad (the issue's median moment-arm
+#: spends the fit there and loses elsewhere: with 0.5 mm/rad (the median moment-arm
 #: target) Leg6Dof9Musc's moment-arm RMS p95 is 0.87 mm (0.77 at a 2e-5 m location target),
 #: Gait10dof18musc's 0.53, against 0.50 and 0.51 mm fitted to the location alone, whose
 #: derivative errors are 0.4-0.5 mm/rad RMS (1.8-2.8 mm/rad at worst, next to that knot).

@@ -19,9 +19,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from o2m.convert.builder import JointRecord
 from o2m.convert.carriers import CARRIER_ARMATURE, Carriers
 from o2m.convert.pathpoints import PathContext
+from o2m.convert.records import JointRecord
 from o2m.osim.paths import Path, PathPoint
 from o2m.transforms import Transform
 

@@ -20,10 +20,11 @@ import mujoco
 import numpy as np
 
 from o2m.convert import forces
-from o2m.convert.builder import Approximation, MjcfBuilder
+from o2m.convert.builder import MjcfBuilder
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.muscles import fit_muscles
 from o2m.convert.pathforces import PATH_FORCE_MODES
+from o2m.convert.records import Approximation
 from o2m.convert.report import ConversionReport
 from o2m.convert.tendons import add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry

@@ -44,7 +44,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from o2m.convert.builder import Approximation, MjcfBuilder
+from o2m.convert.builder import MjcfBuilder
+from o2m.convert.records import Approximation
 from o2m.convert.wraps import segment_distance as _segment_distance
 from o2m.convert.wraps import wrap_segments
 from o2m.osim import runtime

@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
-from o2m.convert.builder import Approximation, MjcfBuilder
+from o2m.convert.builder import MjcfBuilder
 from o2m.convert.force_context import (
     N_GRID,
     N_POSES,
@@ -27,6 +27,7 @@ from o2m.convert.force_context import (
     _tendon_row,
 )
 from o2m.convert.limit_forces import fit_deadband
+from o2m.convert.records import Approximation
 from o2m.osim.functions import parse_function
 
 __all__ = ["convert_ligament", "fit_ligaments", "measure_ligaments"]

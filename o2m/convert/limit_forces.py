@@ -37,7 +37,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
-from o2m.convert.builder import Approximation, MjcfBuilder
+from o2m.convert.builder import MjcfBuilder
 from o2m.convert.force_context import (
     FAR,
     N_GRID,
@@ -49,6 +49,7 @@ from o2m.convert.force_context import (
     _number,
     _text,
 )
+from o2m.convert.records import Approximation
 from o2m.osim import runtime
 from o2m.osim.skeleton import JOINT_AXES, Skeleton, Skipped
 

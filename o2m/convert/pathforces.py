@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from o2m.convert.builder import Approximation
 from o2m.convert.pathpoints import PathContext
+from o2m.convert.records import Approximation
 from o2m.osim.paths import Path, PathPoint
 from o2m.transforms import Transform
 

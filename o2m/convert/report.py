@@ -9,7 +9,7 @@ import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from o2m.convert.builder import Approximation, JointRecord
+from o2m.convert.records import Approximation, JointRecord
 from o2m.convert.wrapfit import PathFit, format_fits
 from o2m.osim.skeleton import Skipped
 

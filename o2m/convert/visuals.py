@@ -11,7 +11,7 @@ from pathlib import Path
 import mujoco
 
 from o2m.convert import geometry
-from o2m.convert.builder import BuildResult
+from o2m.convert.records import BuildResult
 from o2m.osim.meshes import read_mesh, write_stl
 from o2m.osim.skeleton import Skeleton, Skipped
 from o2m.transforms import OSIM_TO_MJ, Transform, matrix_to_quat, quat_to_matrix

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from o2m.convert.builder import Approximation
 from o2m.convert.pathpoints import PathContext
+from o2m.convert.records import Approximation
 from o2m.mj import mjcf_text
 from o2m.osim.paths import Path, WrapObject
 from o2m.transforms import Transform, matrix_to_quat

@@ -255,7 +255,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
 
 
 def _worker_main(argv: list[str]) -> int:
-    """``python -m o2m.opensim_sim IN.npz OUT.npz``: run :func:`simulate` on a job file."""
+    """``python -m o2m.osim.simulate IN.npz OUT.npz``: run :func:`simulate` on a job file."""
     job, out = argv
     with np.load(job, allow_pickle=False) as z:
         init = dict(zip([str(s) for s in z["init_names"]], z["init_values"].tolist(), strict=False))
@@ -286,7 +286,7 @@ def run_isolated(osim_path: str | os.PathLike[str], times: np.ndarray, excitatio
                  method=settings.method, accuracy=settings.accuracy, min_step=settings.min_step,
                  max_step=settings.max_step, wall_limit=float(timeout))
         try:
-            proc = subprocess.run([sys.executable, "-m", "o2m.opensim_sim", str(job), str(out)], cwd=tmp,
+            proc = subprocess.run([sys.executable, "-m", "o2m.osim.simulate", str(job), str(out)], cwd=tmp,
                                   capture_output=True, text=True, timeout=timeout + 30.0)
         except subprocess.TimeoutExpired:
             return OpenSimRun.empty("timeout", f"killed after {timeout + 30:g} s wall clock", times,

@@ -45,13 +45,15 @@ import json
 import os
 import pickle
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
+from o2m.mj.mjcf_text import number_text
 from o2m.mj.simulate import rollout
 
 __all__ = ["BOUNDS", "DIVERGED_COST", "FitResult", "PENALTY", "ParameterSpace", "TrajectoryObjective", "fit_cma",
@@ -141,26 +143,8 @@ class ParameterSpace:
         """A copy of ``model`` with the parameters ``x`` (log10, shape (n,)) written in."""
         m = copy.copy(model)
         for (kind, idx), v in zip(self._targets, self.physical(x), strict=False):
-            if kind == "damping":
-                m.dof_damping[idx] = v
-            elif kind == "limit_scale":
-                for t in idx:
-                    m.tendon_stiffness[t] = model.tendon_stiffness[t] * v
-                    m.tendon_stiffnesspoly[t] = model.tendon_stiffnesspoly[t] * v
-            elif kind == "limit_timeconst":
-                m.jnt_solref[idx, 0] = v
-            elif kind == "tendon_damping":
-                m.tendon_damping[idx] = v
-            elif kind == "tendon_stiffness":
-                m.tendon_stiffness[idx] = v
-            elif kind == "spring_scale":
-                m.tendon_stiffness[idx] = model.tendon_stiffness[idx] * v
-                m.tendon_stiffnesspoly[idx] = model.tendon_stiffnesspoly[idx] * v
-            elif kind == "muscle_scale":
-                m.actuator_gainprm[idx, 2] = model.actuator_gainprm[idx, 2] * v
-                m.actuator_biasprm[idx, 2] = model.actuator_biasprm[idx, 2] * v
+            _KINDS[kind].apply(m, model, idx, v)
         return m
-
 
     def write_mjcf(self, model: mujoco.MjModel, x: np.ndarray, xml_in: str | os.PathLike[str],
                    xml_out: str | os.PathLike[str]) -> Path:
@@ -168,54 +152,131 @@ class ParameterSpace:
 
         The written model equals :meth:`apply` of ``model`` in every field the parameters touch.
         """
-        from lxml import etree
-
-        tree = etree.parse(str(xml_in))
-        root = tree.getroot()
-
-        def find(tag: str, name: str):
-            el = root.find(f".//{tag}[@name='{name}']")
-            if el is None:
-                raise KeyError(f"{xml_in}: no {tag} named {name!r}")
-            return el
-
-        def tendon(t: int):
-            name = model.tendon(t).name
-            return next(el for el in root.iterfind(".//tendon/*") if el.get("name") == name)
-
-        def num(v) -> str:
-            return " ".join(f"{float(a):.17g}" for a in np.atleast_1d(v))
-
-        def scaled(el, attr: str, factor: float, default: str) -> None:
-            el.set(attr, num(np.array((el.get(attr) or default).split(), float) * factor))
-
+        doc = _Mjcf(xml_in, model)
         for (kind, idx), v in zip(self._targets, self.physical(x), strict=True):
-            if kind == "damping":
-                find("joint", model.joint(int(np.flatnonzero(model.jnt_dofadr == idx)[0])).name).set("damping", num(v))
-            elif kind == "limit_scale":
-                for t in idx:
-                    scaled(tendon(t), "stiffness", v, "0")
-            elif kind == "limit_timeconst":
-                find("joint", model.joint(idx).name).set("solreflimit", num([v, model.jnt_solref[idx, 1]]))
-            elif kind == "tendon_damping":
-                tendon(idx).set("damping", num(v))
-            elif kind == "tendon_stiffness":
-                tendon(idx).set("stiffness", num(v))
-            elif kind == "spring_scale":
-                scaled(tendon(idx), "stiffness", v, "0")
-            elif kind == "muscle_scale":
-                act = next(el for el in root.iterfind(".//actuator/*") if el.get("name") == model.actuator(idx).name)
-                if act.tag == "muscle":
-                    scaled(act, "force", v, "-1")
-                else:
-                    for attr in ("gainprm", "biasprm"):
-                        prm = np.array(act.get(attr).split(), float)
-                        prm[2] *= v
-                        act.set(attr, num(prm))
+            _KINDS[kind].write(doc, idx, v)
         out = Path(xml_out)
-        tree.write(str(out), pretty_print=True)
+        doc.tree.write(str(out), pretty_print=True)
         mujoco.MjModel.from_xml_path(str(out))  # it must load
         return out
+
+
+class _Mjcf:
+    """The MJCF of a model, to write parameters into: its elements by the model's ids."""
+
+    def __init__(self, xml: str | os.PathLike[str], model: mujoco.MjModel):
+        from lxml import etree
+
+        self.xml, self.model = xml, model
+        self.tree = etree.parse(str(xml))
+        self.root = self.tree.getroot()
+
+    def find(self, tag: str, name: str):
+        el = self.root.find(f".//{tag}[@name='{name}']")
+        if el is None:
+            raise KeyError(f"{self.xml}: no {tag} named {name!r}")
+        return el
+
+    def joint_of_dof(self, dof: int):
+        return self.find("joint", self.model.joint(int(np.flatnonzero(self.model.jnt_dofadr == dof)[0])).name)
+
+    def tendon(self, t: int):
+        name = self.model.tendon(t).name
+        return next(el for el in self.root.iterfind(".//tendon/*") if el.get("name") == name)
+
+    def actuator(self, a: int):
+        return next(el for el in self.root.iterfind(".//actuator/*") if el.get("name") == self.model.actuator(a).name)
+
+
+def _scaled(el, attr: str, factor: float, default: str) -> None:
+    el.set(attr, number_text(np.array((el.get(attr) or default).split(), float) * factor))
+
+
+def _scale_spring(m: mujoco.MjModel, model: mujoco.MjModel, t: int, v: float) -> None:
+    m.tendon_stiffness[t] = model.tendon_stiffness[t] * v
+    m.tendon_stiffnesspoly[t] = model.tendon_stiffnesspoly[t] * v
+
+
+def _scale_muscle(m: mujoco.MjModel, model: mujoco.MjModel, a: int, v: float) -> None:
+    m.actuator_gainprm[a, 2] = model.actuator_gainprm[a, 2] * v
+    m.actuator_biasprm[a, 2] = model.actuator_biasprm[a, 2] * v
+
+
+def _write_muscle_scale(doc: _Mjcf, a: int, v: float) -> None:
+    act = doc.actuator(a)
+    if act.tag == "muscle":
+        _scaled(act, "force", v, "-1")
+        return
+    for attr in ("gainprm", "biasprm"):
+        prm = np.array(act.get(attr).split(), float)
+        prm[2] *= v
+        act.set(attr, number_text(prm))
+
+
+def _set_damping(m: mujoco.MjModel, model: mujoco.MjModel, dof: int, v: float) -> None:
+    m.dof_damping[dof] = v
+
+
+def _scale_limits(m: mujoco.MjModel, model: mujoco.MjModel, tendons: tuple[int, ...], v: float) -> None:
+    for t in tendons:
+        _scale_spring(m, model, t, v)
+
+
+def _set_limit_timeconst(m: mujoco.MjModel, model: mujoco.MjModel, j: int, v: float) -> None:
+    m.jnt_solref[j, 0] = v
+
+
+def _set_tendon_damping(m: mujoco.MjModel, model: mujoco.MjModel, t: int, v: float) -> None:
+    m.tendon_damping[t] = v
+
+
+def _set_tendon_stiffness(m: mujoco.MjModel, model: mujoco.MjModel, t: int, v: float) -> None:
+    m.tendon_stiffness[t] = v
+
+
+def _write_damping(doc: _Mjcf, dof: int, v: float) -> None:
+    doc.joint_of_dof(dof).set("damping", number_text(v))
+
+
+def _write_limit_scale(doc: _Mjcf, tendons: tuple[int, ...], v: float) -> None:
+    for t in tendons:
+        _scaled(doc.tendon(t), "stiffness", v, "0")
+
+
+def _write_limit_timeconst(doc: _Mjcf, j: int, v: float) -> None:
+    doc.find("joint", doc.model.joint(j).name).set("solreflimit", number_text([v, doc.model.jnt_solref[j, 1]]))
+
+
+def _write_tendon_damping(doc: _Mjcf, t: int, v: float) -> None:
+    doc.tendon(t).set("damping", number_text(v))
+
+
+def _write_tendon_stiffness(doc: _Mjcf, t: int, v: float) -> None:
+    doc.tendon(t).set("stiffness", number_text(v))
+
+
+def _write_spring_scale(doc: _Mjcf, t: int, v: float) -> None:
+    _scaled(doc.tendon(t), "stiffness", v, "0")
+
+
+@dataclass(frozen=True)
+class _Kind:
+    """How one kind of parameter goes into a compiled model (``apply(copy, model, index, value)``)
+    and into its MJCF (``write(doc, index, value)``): one entry, so the two cannot drift apart."""
+
+    apply: Callable[[mujoco.MjModel, mujoco.MjModel, Any, float], None]
+    write: Callable[[_Mjcf, Any, float], None]
+
+
+_KINDS: dict[str, _Kind] = {
+    "damping": _Kind(_set_damping, _write_damping),
+    "limit_scale": _Kind(_scale_limits, _write_limit_scale),
+    "limit_timeconst": _Kind(_set_limit_timeconst, _write_limit_timeconst),
+    "tendon_damping": _Kind(_set_tendon_damping, _write_tendon_damping),
+    "tendon_stiffness": _Kind(_set_tendon_stiffness, _write_tendon_stiffness),
+    "spring_scale": _Kind(_scale_spring, _write_spring_scale),
+    "muscle_scale": _Kind(_scale_muscle, _write_muscle_scale),
+}
 
 
 def parameter_space(model: mujoco.MjModel, dofs: Sequence[str], muscles: Sequence[str],

@@ -197,7 +197,7 @@ def continuous_tendon_front(
     :func:`scipy.optimize.lsq_linear`), or None where OpenSim's largest step leaves none within p
     (:func:`opensim_length_steps`). OpenSim's one-pose spikes (two opposite outlying changes, as
     :func:`o2m.lengthvia.outlying_changes` finds them) are no target. These are lower bounds for
-    the issue's errors, which sample every coordinate.
+    the comparison's errors, which sample every coordinate.
 
     Returns ``{"q", "length", "moment_arm"`` (computeMomentArm) ``: (n,) arrays; "steps": the
     path's steps along the coordinate; "spikes": [q]; "inconsistency_rms", "inconsistency_max":

@@ -29,7 +29,7 @@ from o2m.convert.converter import convert
 from o2m.convert.force_context import _tendon_row
 from o2m.osim.document import load_document
 from o2m.osim.skeleton import read_skeleton
-from tests.helpers import convert_options, require_mirror
+from tests.helpers import convert_options, require_models
 
 osim.Logger.setLevelString("error")
 
@@ -79,7 +79,7 @@ def _approx(report, element: str, name: str):
 
 @pytest.fixture(scope="module")
 def mobl(tmp_path_factory):
-    require_mirror()
+    require_models()
     path = models.fetch_model("mobl_arms_no_wrap", geometry=False, progress=False)
     conv = convert(path, tmp_path_factory.mktemp("mobl"), convert_options(fit_mechanics=False))
     model = osim.Model(str(path))
@@ -129,7 +129,8 @@ def test_mobl_limit_torque_error_is_small(mobl):
 
 def test_mobl_report_no_longer_skips_forces(mobl):
     _, conv, m, *_ = mobl
-    reasons = {(s.element, s.name): s.reason for s in conv.report.skipped}
+    # the model was fetched without its meshes: those skips are not what this test is about
+    reasons = {(s.element, s.name): s.reason for s in conv.report.skipped if s.element != "Mesh"}
     assert not any("not converted yet" in r for r in reasons.values())
     # the wrist's coordinates are locked in this model: their limit forces cannot act
     assert {n for (e, n) in reasons if e == "CoordinateLimitForce"} == {

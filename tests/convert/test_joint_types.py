@@ -28,10 +28,11 @@ import opensim as osim
 import pytest
 from lxml import etree
 
+from o2m import models
 from o2m.convert.converter import convert
 from o2m.transforms import OSIM_TO_MJ
 from o2m.validate.kinematics import compare_kinematics
-from tests.helpers import convert_options, mirror, require_mirror
+from tests.helpers import convert_options, require_models
 
 osim.Logger.setLevelString("error")
 
@@ -925,14 +926,11 @@ def test_massless_intermediate_bodies(tmp_path):
 # An OpenSim 3.x document
 # ---------------------------------------------------------------------------------------------
 
-MOBL = Path("mobl-arms/MoBL_ARMS_model_for_testing_opensim_no_wrap.osim")
-
-
 def test_opensim3_document(tmp_path):
     """A 3.x document (MoBL-ARMS, Version 30000) is upgraded, converted and exact."""
-    require_mirror()
-    mobl = mirror() / MOBL
-    conv = convert(mobl, tmp_path / "out", convert_options(), geometry_dirs=[mobl.parent / "Geometry"])
+    require_models()
+    fetched = models.fetch_model_with_geometry("mobl_arms_no_wrap", progress=False)
+    conv = convert(fetched.osim, tmp_path / "out", convert_options(), geometry_dirs=[fetched.geometry_dir])
     assert conv.xml.exists()
     assert conv.report.source_version < 40000
     mj = mujoco.MjModel.from_xml_path(str(conv.xml))
@@ -942,7 +940,7 @@ def test_opensim3_document(tmp_path):
     assert k >= 0
     np.testing.assert_allclose(mj.key_qpos[k], mj.qpos0, rtol=0, atol=0)
     # Exact kinematics against OpenSim (couplers, locked coordinates, 3.x upgrade).
-    rep = compare_kinematics(mobl, conv.xml, n_poses=10)
+    rep = compare_kinematics(fetched.osim, conv.xml, n_poses=10)
     assert rep.n_poses == 10 and rep.missing_bodies == []
     assert rep.max_pos_error <= EXACT and rep.max_ang_error <= EXACT and rep.com_max_error <= EXACT, rep.summary()
     assert abs(rep.mass_mujoco - rep.mass_opensim) <= EXACT

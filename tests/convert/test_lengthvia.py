@@ -18,12 +18,12 @@ from o2m.osim.document import load_document
 from o2m.osim.paths import read_paths, read_wrap_objects
 from o2m.osim.runtime import load_model
 from o2m.osim.skeleton import SkeletonReader, read_skeleton
-from tests.helpers import convert_options, require_mirror
+from tests.helpers import convert_options, require_models
 
 
 @pytest.fixture(scope="module")
 def arm26():
-    require_mirror()
+    require_models()
     fetched = models.fetch_model_with_geometry("arm26", progress=False)
     doc = load_document(fetched.osim)
     builder = MjcfBuilder(read_skeleton(doc))

@@ -9,16 +9,12 @@ import numpy as np
 import pytest
 
 from o2m.convert.muscle_samples import _Bench, _muscle_elements
-from tests.helpers import mirror
+from tests.helpers import model_file
 
 
 @pytest.fixture(scope="module")
 def arm26() -> Path:
-    m = mirror()
-    path = (m / "opensim-models" / "Models" / "Arm26" / "arm26.osim") if m is not None else None
-    if path is None or not path.exists():
-        pytest.skip("Arm26/arm26.osim not in the local model mirror")
-    return path
+    return model_file("opensim-models/Models/Arm26/arm26.osim")
 
 
 def test_bench_equals_full_model(arm26):

@@ -26,7 +26,7 @@ from o2m.convert.muscles import (
     fit_muscles,
 )
 from o2m.mj.muscle import mujoco_muscle_force
-from tests.helpers import mirror
+from tests.helpers import model_file
 
 #: Arm26 bounds (% of max isometric force), a little above what the fit achieves (see above).
 ARM26_ACTIVE_MAX_PCT = 27.0
@@ -37,11 +37,7 @@ ARM26_ALL_ACTIVE_RMS_PCT = 4.0
 
 
 def _model(rel: str) -> Path:
-    m = mirror()
-    path = (m / "opensim-models" / "Models" / rel) if m is not None else None
-    if path is None or not path.exists():
-        pytest.skip(f"{rel} not in the local model mirror")
-    return path
+    return model_file(f"opensim-models/Models/{rel}")
 
 
 @pytest.fixture(scope="module")

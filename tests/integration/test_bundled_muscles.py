@@ -2,7 +2,7 @@
 
 Asserted: every path force becomes a tendon (muscles also an actuator) of the same name; a path of
 fixed points without wrapping has OpenSim's length to 1e-9 m (up to the recorded knee fits); every
-model simulates 1 s of random muscle excitation without NaN; and the issue's targets over 200
+model simulates 1 s of random muscle excitation without NaN; and the path targets over 200
 random poses (length error <= 1 %, moment-arm RMS per pair median <= 0.5 mm, 95th percentile
 <= 2 mm, max <= 5 mm, no MuJoCo length jump in a 1-degree sweep beyond OpenSim's own).
 
@@ -25,7 +25,7 @@ from o2m.osim.paths import read_paths
 from o2m.osim.skeleton import SkeletonReader, read_skeleton
 from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, sweep_jumps
 from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_MEDIAN_MM, MA_P95_MM, compare_muscles
-from tests.helpers import approximation_budget, convert_options, require_mirror
+from tests.helpers import approximation_budget, convert_options, require_models
 
 NAMES = ["tug_of_war", "arm26", "leg6dof9musc", "gait10dof18musc", "gait2354", "gait2392", "mobl_arms_no_wrap"]
 
@@ -57,7 +57,7 @@ JUMP_GAPS: dict[str, dict[str, float]] = {}
 
 @pytest.fixture(scope="module", params=NAMES)
 def converted(request, tmp_path_factory):
-    require_mirror()
+    require_models()
     fetched = models.fetch_model_with_geometry(request.param, progress=False)
     conv = convert(fetched.osim, tmp_path_factory.mktemp(request.param), convert_options(workers=2),
                    geometry_dirs=[fetched.geometry_dir])

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers import require_mirror
+from tests.helpers import require_models
 
 ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
@@ -41,7 +41,7 @@ def test_notebooks_are_what_the_builder_writes(tmp_path):
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_runs_in_quick_mode(path, monkeypatch):
-    require_mirror()
+    require_models()
     if not (ROOT / "data" / "mobl_arms" / "opensim.npz").exists():
         pytest.skip("no stored dataset")
     import nbformat

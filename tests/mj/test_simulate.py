@@ -22,7 +22,7 @@ from o2m.mj.simulate import (
     step_loop,
 )
 from o2m.osim.simulate import OpenSimRun, run_isolated, run_many, simulate
-from tests.helpers import convert_options, require_mirror
+from tests.helpers import convert_options, require_models
 
 LIFTER = """
 <mujoco>
@@ -50,7 +50,7 @@ ARM26_MUSCLES = ["TRIlong", "TRIlat", "TRImed", "BIClong", "BICshort", "BRA"]
 
 @pytest.fixture(scope="module")
 def arm26(tmp_path_factory):
-    require_mirror()
+    require_models()
     fetched = models.fetch_model_with_geometry("arm26", progress=False)
     # the wrap fit at its full size (as without O2M_QUICK): the quick fit leaves BIClong about 1 mm off
     conv = convert(fetched.osim, tmp_path_factory.mktemp("arm26"), convert_options(quick=False, workers=2),

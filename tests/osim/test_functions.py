@@ -23,11 +23,10 @@ from o2m.osim.functions import (
     function_child,
     parse_function,
 )
-from tests.helpers import mirror
+from tests.helpers import model_file
 
 osim = pytest.importorskip("opensim")
 
-MODELS = (mirror() or Path("shared/models")) / "opensim-models" / "Models"
 TOL = 1e-10  # max |o2m - OpenSim| relative to max(1, |OpenSim|) over the sample points
 
 
@@ -306,16 +305,15 @@ def test_coordinate_coupler_function_printed_in_model(kind, tmp_path):
 # real models
 # ----------------------------------------------------------------------------------------------
 REAL_MODELS = [
-    MODELS / "Gait2354_Simbody" / "gait2354_simbody.osim",
-    MODELS / "Leg6Dof9Musc" / "leg6dof9musc.osim",
-    MODELS / "Gait2354_Simbody" / "subject01_simbody.osim",  # scaled: MultiplierFunction(SimmSpline)
+    "opensim-models/Models/Gait2354_Simbody/gait2354_simbody.osim",
+    "opensim-models/Models/Leg6Dof9Musc/leg6dof9musc.osim",
+    "opensim-models/Models/Gait2354_Simbody/subject01_simbody.osim",  # scaled: MultiplierFunction(SimmSpline)
 ]
 
 
-@pytest.mark.parametrize("path", REAL_MODELS, ids=lambda p: p.name)
-def test_real_model_functions_match_opensim(path):
-    if not path.exists():
-        pytest.skip(f"{path} not present")
+@pytest.mark.parametrize("registry_path", REAL_MODELS, ids=lambda p: p.rsplit("/", 1)[-1])
+def test_real_model_functions_match_opensim(registry_path):
+    path = model_file(registry_path)
     tree = etree.parse(str(path))
     model = osim.Model(str(path))
     joints = model.getJointSet()

@@ -4,23 +4,25 @@ loaded by MuJoCo."""
 from __future__ import annotations
 
 import base64
+import fnmatch
 import lzma
 import struct
 import zlib
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import mujoco
 import numpy as np
 import pytest
 from lxml import etree
 
+from o2m import models
 from o2m.convert.geometry import MUJOCO_VISUAL_MESH_ATTRS
 from o2m.errors import ModelFileError
 from o2m.osim.meshes import Mesh, read_mesh, read_obj, read_stl, read_vtp, write_stl
-from tests.helpers import mirror
+from tests.helpers import require_models
 
-MODELS = mirror() or Path("shared/models")  # the local copy of the models; tests needing it skip without
-GEOMETRY_DIRS = [MODELS / "mobl-arms" / "Geometry", MODELS / "opensim-models" / "Geometry"]
+#: The registry folders of real OpenSim geometry the reader tests go through.
+GEOMETRY_DIRS = ("mobl-arms/Geometry/", "opensim-models/Geometry/")
 
 # --------------------------------------------------------------------------------------------
 # A small VTK XML PolyData writer covering every encoding read_vtp must understand.
@@ -221,10 +223,13 @@ def test_lines_only_vtp_gives_empty_mesh(tmp_path):
 
 
 def _real_files(pattern: str) -> list[Path]:
-    return sorted(f for d in GEOMETRY_DIRS if d.is_dir() for f in d.glob(pattern))
+    """The real geometry files of the registry whose names match ``pattern``, fetched (cached)."""
+    require_models()
+    paths = [p for p in models.get_registry().paths if p.startswith(GEOMETRY_DIRS)]
+    return sorted((models.fetch(p) for p in paths if fnmatch.fnmatch(PurePosixPath(p).name, pattern)),
+                  key=lambda f: f.name)
 
 
-@pytest.mark.skipif(not _real_files("*.vtp"), reason="real OpenSim geometry not available")
 def test_real_vtp_sample_matches_declared_counts():
     names = ["humerus.vtp", "superquadric.vtp", "ConePendulum.vtp", "r_pelvis.vtp"]
     checked = 0
@@ -399,7 +404,6 @@ def test_read_obj(tmp_path):
         mesh.faces, [[0, 1, 2], [0, 2, 3], [0, 4, 3], [0, 1, 2], [0, 2, 3], [0, 3, 4]])
 
 
-@pytest.mark.skipif(not _real_files("*.obj"), reason="real OpenSim geometry not available")
 def test_real_obj_and_stl():
     for f in _real_files("*.obj") + _real_files("*.stl"):
         mesh = read_mesh(f)
@@ -459,7 +463,6 @@ def test_mujoco_loads_open_flat_mesh_with_mjspec(tmp_path):
             '<geom type="mesh" mesh="f"/></body></worldbody></mujoco>')
 
 
-@pytest.mark.skipif(not _real_files("*.vtp"), reason="real OpenSim geometry not available")
 def test_every_real_mesh_converts_and_loads(tmp_path):
     """Every real .vtp/.stl/.obj converts to STL and compiles in MuJoCo, except files holding no
     surface at all (axes.vtp, line.vtp, outline.vtp: only <Lines>), which write_stl refuses."""

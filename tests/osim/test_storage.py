@@ -7,7 +7,7 @@ import pytest
 
 from o2m.errors import ModelFileError
 from o2m.osim.storage import read_sto, write_sto
-from tests.helpers import require_mirror
+from tests.helpers import require_models
 
 
 def test_round_trip(tmp_path):
@@ -23,7 +23,7 @@ def test_round_trip(tmp_path):
 
 
 def test_mobl_initial_states():
-    require_mirror()
+    require_models()
     from o2m import models
 
     st = read_sto(models.fetch("mobl-arms/initial_states.sto"))

@@ -7,12 +7,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from tests.helpers import convert_options, require_mirror
+from tests.helpers import convert_options, require_models
 
 
 def convert_model(name: str, out: Path):
     """(osim path, MJCF path, MjModel) of the bundled model ``name`` converted into ``out``."""
-    require_mirror()
+    require_models()
     from o2m.convert.converter import convert
     from o2m.models import fetch_model_with_geometry
 

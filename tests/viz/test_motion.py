@@ -9,13 +9,13 @@ import pytest
 from o2m.errors import O2MError
 from o2m.osim.storage import write_sto
 from o2m.viz.motion import Motion, MotionError, coordinate_of_column, load_motion, resample_motion
-from tests.helpers import convert_options, require_mirror
+from tests.helpers import convert_options, require_models
 
 
 @pytest.fixture(scope="session")
 def arm26(tmp_path_factory) -> mujoco.MjModel:
     """arm26 converted once per session (no muscle fitting: only the kinematics matter here)."""
-    require_mirror()
+    require_models()
     from o2m.convert.converter import convert
     from o2m.models import fetch_model_with_geometry
 
@@ -118,7 +118,7 @@ def test_resample(tmp_path):
 
 def test_replay_command_writes_a_page(tmp_path):
     """``python -m o2m replay MODEL.xml MOTION.mot``: a .mot in degrees becomes a meshcat page."""
-    require_mirror()
+    require_models()
     from o2m.cli import main
     from o2m.convert.converter import convert
     from o2m.models import fetch_model_with_geometry

@@ -1,0 +1,53 @@
+"""What a conversion records: each MuJoCo joint and how it is driven, each approximation with its
+measured error, and the model being built."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+
+__all__ = ["MIN_INERTIA", "Approximation", "BuildResult", "JointRecord"]
+
+#: The smallest principal inertia (kg m²) MuJoCo is given; a smaller one is raised to it (reported).
+MIN_INERTIA = 1e-12
+
+
+@dataclass
+class Approximation:
+    """A place where the MuJoCo model only approximates OpenSim, with the measured error."""
+
+    element: str
+    name: str
+    what: str
+    max_error: float
+    units: str
+    detail: str = ""
+    joint: str = ""  # the MuJoCo joint whose motion is approximated, if any
+    #: For a coupling: the worst and RMS error of d joint / d coordinate over the coordinate's
+    #: range, in ``slope_units`` (for a path point's location against an angle, m/rad: a
+    #: moment-arm error); None otherwise.
+    slope_error: float | None = None
+    slope_rms: float | None = None
+    slope_units: str = ""
+
+
+@dataclass
+class JointRecord:
+    """One MuJoCo joint: what drives it and how."""
+
+    name: str
+    kind: str  # "hinge" or "slide"
+    opensim_joint: str
+    axis: str
+    coordinate: str | None  # the OpenSim coordinate whose value this joint is, if any
+    driven_by: str | None  # MuJoCo joint of the equality that drives it, if any
+    relation: str  # "coordinate", "linear", "quartic fit"
+
+
+@dataclass
+class BuildResult:
+    spec: mujoco.MjSpec
+    joints: list[JointRecord] = field(default_factory=list)
+    approximations: list[Approximation] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
