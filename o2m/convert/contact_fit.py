@@ -16,19 +16,24 @@ f · [min(v/v_t, 1) (μ_d + 2(μ_s - μ_d) / (1 + (v/v_t)²)) + μ_v v], each μ
 
 **The MuJoCo contact.** MuJoCo's soft contact is linear in penetration and velocity, so no choice
 of ``solref`` reproduces x^(3/2). o2m puts MuJoCo's contact in its penalty regime (impedance
-``solimp`` = :data:`IMPEDANCE` = MuJoCo's smallest, 1e-4): the constraint force is then the
-spring-damper f = m̃ (ω² x + 2ζω ẋ), clamped at 0, where m̃ is MuJoCo's effective mass of the
-contact (1 / the two bodies' ``body_invweight0``), set with ``solref = (-ω², -2ζω)``; the
-remaining "constraint" part of MuJoCo's contact (impedance x the unconstrained acceleration) is
-1e-4 of the load. ω and ζ are fitted so that a body of mass m̃ hitting the surface at
-:data:`REFERENCE_SPEED` reaches the same peak penetration and leaves with the same speed
-(coefficient of restitution) as under Hunt-Crossley. Why an impact and not the static load:
-landing, walking and kicking models are about impacts, and a spring matched to the resting
-penetration under the body's weight is about half as stiff as the impact needs (twice the peak
-penetration at 1-3 m/s). What the fit cannot keep: peak penetration grows as v^(4/5) under
-Hunt-Crossley and as v here, contact lasts as v^(-1/5) there and constantly here, and
-Hunt-Crossley's restitution falls with impact speed while the spring-damper's is constant; the
-conversion report measures these errors at several impact speeds (:func:`measure_impacts`).
+``solimp`` = :data:`IMPEDANCE` = 1e-4, MuJoCo's smallest): the contact force is then the
+spring-damper f = K x + B ẋ, clamped at 0, with K = -solref[0] / w and B = -solref[1] / w, w the
+two bodies' ``body_invweight0`` (MuJoCo's mass scale of the contact, fixed at the default pose),
+plus 1e-4 of the load MuJoCo's constraint would otherwise carry. K and B are fitted so that the
+pair's effective mass m (1 / n·J M⁻¹ Jᵀ·n along the contact normal at the default pose) hitting
+the surface at :data:`REFERENCE_SPEED` reaches Hunt-Crossley's peak penetration and leaves with
+its coefficient of restitution. Why an impact and not the static load: landing, walking and
+kicking models are about impacts, and the spring that rests at Hunt-Crossley's penetration under
+the weight m g is 2.3 times softer (the 1-kg ball of ``benchmarks/contact.py``: 1.8 times the
+peak penetration at 1 m/s). Why linear: a penetration-dependent impedance (``solimp`` width and
+power) bends MuJoCo's spring towards x^(3/2), but scales its damping with the square root of its
+stiffness, so the damping ratio, and with it the restitution, is the same at every speed
+(fitted over 0.5-4 m/s it brought peak penetration within -9..+19 % but left the restitution
+as it was and lengthened slow contacts by 40 %). What the fit cannot keep: peak penetration
+grows as v^(4/5) under Hunt-Crossley and as v here, contact lasts as v^(-1/5) there and
+constantly here, and Hunt-Crossley's restitution falls with impact speed while the
+spring-damper's does not; the conversion report measures these errors at several impact speeds
+(:func:`measure_impacts`).
 
 **Friction.** MuJoCo's elliptic cone has one Coulomb coefficient where Hunt-Crossley's μ(v)
 varies with the slip speed (rising from 0 to μ_s at v_t, falling to μ_d, and growing by μ_v v).
