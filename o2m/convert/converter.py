@@ -134,6 +134,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
             fit_seconds = time.perf_counter() - t_fit
         _set_length_ranges(spec, model, builder)
         forces.fit_ligaments(force_conv, spec, model, builder)
+        forces.fit_contacts(force_conv, spec, model, builder)
         spec.add_key(name="default-pose", qpos=model.qpos0.copy())
         spec.compile()
         xml_path = stage / f"{stem}.xml"

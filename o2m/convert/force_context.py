@@ -2,7 +2,8 @@
 reading an element's properties, and the poses forces are measured at.
 
 Units: SI (rad, m, N, N m, s). A :class:`ForceConversion` records one conversion; each handler
-(:mod:`o2m.convert.limit_forces`, :mod:`o2m.convert.ligaments`, :mod:`o2m.convert.actuators`)
+(:mod:`o2m.convert.limit_forces`, :mod:`o2m.convert.ligaments`, :mod:`o2m.convert.actuators`,
+:mod:`o2m.convert.contact`)
 gets a :class:`_Context` holding it and the :class:`~o2m.convert.builder.MjcfBuilder`.
 """
 
@@ -16,10 +17,12 @@ import numpy as np
 from lxml import etree
 
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.contact_fit import HuntCrossley, LinearContact
 from o2m.osim.functions import Function
 from o2m.osim.skeleton import SkeletonReader, Skipped
 
-__all__ = ["FAR", "N_GRID", "N_POSES", "ForceConversion", "Ligament", "LimitForce", "PoseDrift", "SideFit"]
+__all__ = ["FAR", "N_GRID", "N_POSES", "ContactConversion", "ContactGeom", "ContactPair", "ForceConversion", "Ligament",
+           "LimitForce", "PoseDrift", "SideFit"]
 
 #: Samples of the coordinate (or tendon length) a fit and a measurement use.
 N_GRID = 241
@@ -133,6 +136,43 @@ class PoseDrift:
 
 
 @dataclass
+class ContactGeom:
+    """A ContactGeometry as a MuJoCo geom: ``kind`` "sphere" or "plane", ``radius`` (m)."""
+
+    name: str  # the OpenSim name
+    geom: str  # the MuJoCo geom
+    kind: str
+    body: str
+    radius: float
+    weld: str  # the MuJoCo body it moves with (the world's name when static)
+    static: bool
+
+
+@dataclass
+class ContactPair:
+    """A pair of contact geoms of one HuntCrossleyForce and the MuJoCo contact it became."""
+
+    force: str
+    name: str  # the MuJoCo pair
+    first: ContactGeom  # the plane, when there is one (MuJoCo's contact normal points from it)
+    second: ContactGeom
+    law: HuntCrossley
+    pair: mujoco.MjsPair
+    fit: LinearContact | None = None
+    inverse_weight: float = 0.0  # 1/kg, MuJoCo's scale of solref for this pair
+
+
+@dataclass
+class ContactConversion:
+    """The contact part of a :class:`~o2m.convert.force_context.ForceConversion`."""
+
+    geoms: dict[str, ContactGeom] = field(default_factory=dict)
+    pairs: list[ContactPair] = field(default_factory=list)
+    forces: list[str] = field(default_factory=list)
+    unused: dict[str, str] = field(default_factory=dict)  # geometry name -> why it has no geom
+
+
+@dataclass
 class ForceConversion:
     """What the force handlers did in one conversion."""
 
@@ -142,12 +182,13 @@ class ForceConversion:
     ligaments: list[Ligament] = field(default_factory=list)
     drifts: list[PoseDrift] = field(default_factory=list)
     actuators: list[str] = field(default_factory=list)
+    contact: ContactConversion = field(default_factory=ContactConversion)
     #: Full-precision attribute values by (MJCF tag, name), written over MuJoCo's 6-digit output.
     exact: dict[tuple[str, str], dict[str, np.ndarray]] = field(default_factory=dict)
 
     @property
     def converted(self) -> int:
-        return len(self.limit_forces) + len(self.ligaments) + len(self.actuators)
+        return len(self.limit_forces) + len(self.ligaments) + len(self.actuators) + len(self.contact.forces)
 
 
 @dataclass

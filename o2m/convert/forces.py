@@ -9,6 +9,9 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
 * **Ligament**: a spring on the spatial tendon of its path (:mod:`o2m.convert.ligaments`).
 * **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
   (:mod:`o2m.convert.actuators`).
+* **HuntCrossleyForce**: geoms for its ContactSpheres and ContactHalfSpaces and explicit contact
+  pairs (:mod:`o2m.convert.contact`); ElasticFoundationForce and SmoothSphereHalfSpaceForce are
+  listed as skipped, and so is contact geometry no converted force uses.
 
 Actuators are added after the muscle actuators, named as in OpenSim; ``min_control`` and
 ``max_control`` become ``ctrlrange`` when both are finite.
@@ -32,6 +35,7 @@ from o2m.convert.actuators import (
     measure_drifts,
 )
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.contact import convert_hunt_crossley, fit_contacts, measure_contacts, skip_force, skip_unused_geometry
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_ligament, fit_ligaments, measure_ligaments
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
@@ -39,7 +43,7 @@ from o2m.mj import mjcf_text
 from o2m.osim.skeleton import SkeletonReader, Skipped
 
 __all__ = ["FORCE_TYPES", "HANDLERS", "ForceConversion", "LimitForce", "Ligament", "SideFit", "add_forces",
-           "fit_deadband", "fit_ligaments", "measure", "motion_type", "restore_precision"]
+           "fit_contacts", "fit_deadband", "fit_ligaments", "measure", "motion_type", "restore_precision"]
 
 
 #: The converter of each OpenSim force type o2m converts here (Ligament: its spring; the tendon
@@ -50,6 +54,9 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "CoordinateActuator": convert_coordinate_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,
+    "HuntCrossleyForce": convert_hunt_crossley,
+    "ElasticFoundationForce": skip_force,
+    "SmoothSphereHalfSpaceForce": skip_force,
 })
 FORCE_TYPES = frozenset(HANDLERS)
 
@@ -58,7 +65,8 @@ def add_forces(builder: MjcfBuilder, reader: SkeletonReader) -> ForceConversion:
     """Convert every force of the ForceSet that has a handler; call after the muscle paths (so the
     actuators come after the muscles' and the ligaments' tendons exist)."""
     spec = builder.spec
-    names = {"site": {s.name for s in spec.sites}, "tendon": {t.name for t in spec.tendons}}
+    names = {"site": {s.name for s in spec.sites}, "tendon": {t.name for t in spec.tendons},
+             "geom": {g.name for g in spec.geoms}, "pair": {p.name for p in spec.pairs}}
     ctx = _Context(builder, reader, ForceConversion(), names)
     for el in reader.set_objects("ForceSet"):
         handler = HANDLERS.get(el.tag)
@@ -70,6 +78,7 @@ def add_forces(builder: MjcfBuilder, reader: SkeletonReader) -> ForceConversion:
                                            + ("; its path is a tendon without spring" if el.tag == "Ligament" else "")))
             continue
         handler(ctx, el)
+    skip_unused_geometry(ctx)
     return ctx.out
 
 
@@ -93,3 +102,4 @@ def measure(out: ForceConversion, model: mujoco.MjModel, osim: str | Path, build
     measure_limit_forces(out, model, osim, builder)
     measure_ligaments(out, model, builder)
     measure_drifts(out, builder)
+    measure_contacts(out, model, builder)

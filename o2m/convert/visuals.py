@@ -26,7 +26,7 @@ def add_geometry(result: BuildResult, skel: Skeleton, bodies: dict[str, mujoco.M
     spec = result.spec
     skipped: list[Skipped] = []
     meshes: dict[tuple[str, tuple[float, ...]], str] = {}
-    used_names: set[str] = set()
+    used_names: set[str] = {g.name for g in spec.geoms}  # contact and wrap geoms are added before
     mesh_dir.mkdir(parents=True, exist_ok=True)
 
     def unique(name: str) -> str:
