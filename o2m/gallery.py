@@ -19,7 +19,7 @@ from pathlib import Path, PurePosixPath
 
 from o2m import models
 
-__all__ = ["CORPUS_EXTRA", "GalleryRow", "corpus", "run_gallery", "write_page"]
+__all__ = ["CORPUS_EXTRA", "GalleryRow", "corpus", "model_names", "run_gallery", "write_page"]
 
 #: Corpus files beyond opensim-models' Models folder (registry paths).
 CORPUS_EXTRA = ("mobl-arms/MoBL_ARMS_model_for_mujoco.osim",)
@@ -96,8 +96,14 @@ def _error_line(text: str) -> str:
     return hit.strip()[:300]
 
 
-def _one(registry_path: str, out: Path, *, quick: bool, poses: int, timeout: float) -> GalleryRow:
-    name = PurePosixPath(registry_path).stem
+def model_names(paths: list[str]) -> dict[str, str]:
+    """A unique name per registry path: the file's stem, with its folder where two stems agree
+    (``Gait2392_Simbody-subject01``)."""
+    stems = [PurePosixPath(p).stem for p in paths]
+    return {p: (f"{PurePosixPath(p).parent.name}-{s}" if stems.count(s) > 1 else s) for p, s in zip(paths, stems, strict=True)}
+
+
+def _one(registry_path: str, name: str, out: Path, *, quick: bool, poses: int, timeout: float) -> GalleryRow:
     row = GalleryRow(name, registry_path, "converted")
     t0 = time.perf_counter()
     try:
@@ -131,10 +137,11 @@ def run_gallery(out: str | os.PathLike = "out/gallery", docs: str | os.PathLike 
     from tqdm.auto import tqdm
 
     out, docs = Path(out), Path(docs)
-    paths = [p for p in corpus() if only is None or PurePosixPath(p).stem in only]
+    names = model_names(corpus())
+    paths = [p for p, n in names.items() if only is None or n in only or PurePosixPath(p).stem in only]
     rows = []
     for registry_path in tqdm(paths, desc="gallery", unit="model", disable=not progress):
-        row = _one(registry_path, out, quick=quick, poses=poses, timeout=timeout)
+        row = _one(registry_path, names[registry_path], out, quick=quick, poses=poses, timeout=timeout)
         if row.measured.get("xml"):
             row.thumbnail = _thumbnail(row.measured["xml"], docs / "models" / f"{row.model}.png")
         rows.append(row)

@@ -19,14 +19,14 @@ import logging
 import os
 import shutil
 import tempfile
-import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path, PurePosixPath
 from typing import NamedTuple
 
-from o2m.errors import FetchError
+from o2m.errors import FetchError, ModelFileError
+from o2m.osim.document import parse_xml
 
 __all__ = [
     "BUNDLED",
@@ -375,8 +375,8 @@ _MESH_TAGS = {"mesh_file", "geometry_file", "geometry_files"}
 def referenced_meshes(osim: str | os.PathLike[str]) -> list[str]:
     """Mesh file names an .osim references (``<mesh_file>``, 3.x ``<geometry_file>``), in order, unique."""
     try:
-        tree = ET.parse(osim)
-    except (ET.ParseError, OSError) as e:
+        tree = parse_xml(Path(osim))
+    except ModelFileError as e:
         raise FetchError(f"cannot read {osim} to find its meshes: {e}") from e
     seen: dict[str, None] = {}
     for el in tree.iter():

@@ -161,7 +161,9 @@ _NESTED_TAG = re.compile(rb"<(/?)([A-Za-z_][\w.-]*)::(?=[A-Za-z_])")
 NESTED_SEPARATOR = "__"
 
 
-def _parse_xml(path: Path) -> etree._ElementTree:
+def parse_xml(path: Path) -> etree._ElementTree:
+    """An .osim file's XML tree (OpenSim's ``Outer::Inner`` tags read as ``Outer__Inner``); a
+    :class:`~o2m.errors.ModelFileError` naming the file and line when it cannot be read."""
     if not path.exists():
         raise ModelFileError(f"{path}: no such file")
     if path.is_dir():
@@ -187,13 +189,13 @@ def _upgrade_with_opensim(path: Path) -> etree._ElementTree:
     with tempfile.TemporaryDirectory(prefix="o2m-upgrade-") as tmp:
         out = Path(tmp) / path.name
         model.printToXML(str(out))
-        return _parse_xml(out)
+        return parse_xml(out)
 
 
 def load_document(path: str | Path) -> OsimDocument:
     """Read an .osim file (4.x, or 3.x upgraded through OpenSim) into an :class:`OsimDocument`."""
     path = Path(path)
-    tree = _parse_xml(path)
+    tree = parse_xml(path)
     root = tree.getroot()
     if root.tag != "OpenSimDocument":
         raise ModelFileError(
