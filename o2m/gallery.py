@@ -100,7 +100,8 @@ def model_names(paths: list[str]) -> dict[str, str]:
     """A unique name per registry path: the file's stem, with its folder where two stems agree
     (``Gait2392_Simbody-subject01``)."""
     stems = [PurePosixPath(p).stem for p in paths]
-    return {p: (f"{PurePosixPath(p).parent.name}-{s}" if stems.count(s) > 1 else s) for p, s in zip(paths, stems, strict=True)}
+    return {p: (f"{PurePosixPath(p).parent.name}-{s}" if stems.count(s) > 1 else s)
+            for p, s in zip(paths, stems, strict=True)}
 
 
 def _one(registry_path: str, name: str, out: Path, *, quick: bool, poses: int, timeout: float) -> GalleryRow:
