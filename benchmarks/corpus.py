@@ -35,7 +35,8 @@ print(f"OK {r.seconds:.1f} s; {len(r.approximations)} approximations, {len(r.ski
 
 def corpus(mirror: Path) -> list[Path]:
     """Every .osim of the corpus, sorted."""
-    return sorted((mirror / "opensim-models" / "Models").rglob("*.osim")) + sorted((mirror / "mobl-arms").glob("*.osim"))
+    models = mirror / "opensim-models" / "Models"
+    return sorted(models.rglob("*.osim")) + sorted((mirror / "mobl-arms").glob("*.osim"))
 
 
 def inventory(paths: list[Path]) -> dict[str, list[str]]:

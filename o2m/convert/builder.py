@@ -35,8 +35,6 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.osim.skeleton` for the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import mujoco
 import numpy as np
 from lxml import etree
@@ -58,7 +56,6 @@ from o2m.convert.coupling_plan import (
     ExtraJoint,
     PlannedAxis,
     added_inertia,
-    extra_armature,
     plan_group,
     plan_skeleton,
     planned_axes,
@@ -66,13 +63,18 @@ from o2m.convert.coupling_plan import (
     quartic_coupling,
 )
 from o2m.convert.couplings import AxisFit, CouplingFit
+from o2m.convert.inertials import (
+    COMPLEMENT_ARMATURE,
+    main_inertias,
+    set_complement_armature,
+    set_extra_armature,
+    set_inertial,
+)
+from o2m.convert.records import Approximation, BuildResult, JointRecord
 from o2m.mj import mjcf_text
 from o2m.osim.skeleton import Joint, Skeleton, TransformAxis
 from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat
 
-#: Mass (kg) and principal inertia (kg m²) given to massless moving bodies, which MuJoCo rejects.
-MIN_MASS = 1e-8
-MIN_INERTIA = 1e-12
 #: Softness of every joint equality o2m writes (couplers, coupled axes, path-point carriers): the
 #: shortest time constant MuJoCo allows at the default 2 ms step, critically damped, and an
 #: impedance of 0.999, so a load deflects a coupling by about 1e-3 of what MuJoCo's default
@@ -84,50 +86,6 @@ EQUALITY_SOLIMP = (0.999, 0.999, 0.001, 0.5, 2.0)
 #: OpenSim's. Its slides move the OpenSim body hanging from it, so their inertia is that body's.
 COUPLINGS_BODY_MASS = 1e-12
 COUPLINGS_BODY_INERTIA = 1e-14
-
-
-@dataclass
-class Approximation:
-    """A place where the MuJoCo model only approximates OpenSim, with the measured error."""
-
-    element: str
-    name: str
-    what: str
-    max_error: float
-    units: str
-    detail: str = ""
-    joint: str = ""  # the MuJoCo joint whose motion is approximated, if any
-    #: For a coupling: the worst and RMS error of d joint / d coordinate over the coordinate's
-    #: range, in ``slope_units`` (for a path point's location against an angle, m/rad: a
-    #: moment-arm error); None otherwise.
-    slope_error: float | None = None
-    slope_rms: float | None = None
-    slope_units: str = ""
-
-
-@dataclass
-class JointRecord:
-    """One MuJoCo joint: what drives it and how."""
-
-    name: str
-    kind: str  # "hinge" or "slide"
-    opensim_joint: str
-    axis: str
-    coordinate: str | None  # the OpenSim coordinate whose value this joint is, if any
-    driven_by: str | None  # MuJoCo joint of the equality that drives it, if any
-    relation: str  # "coordinate", "linear", "quartic fit"
-
-
-@dataclass
-class BuildResult:
-    spec: mujoco.MjSpec
-    joints: list[JointRecord] = field(default_factory=list)
-    approximations: list[Approximation] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
-
-#: A complement joint's armature, as a fraction of its coordinate joint's own inertia: enough to
-#: keep the mass matrix regular, small beside what the coordinate moves.
-COMPLEMENT_ARMATURE = 0.01
 
 
 def _rest(fn, q: np.ndarray) -> np.ndarray:
@@ -243,8 +201,8 @@ class MjcfBuilder:
         for c in self.skel.coordinates.values():
             if c.locked:
                 self.result.notes.append(f"locked coordinate '{c.name}' folded into fixed transforms at {c.default:g}")
-        self._set_extra_armature()
-        self._set_complement_armature()
+        set_extra_armature(self)
+        set_complement_armature(self)
         for marker in self.skel.markers:
             body = self.bodies[marker.body]
             pos = marker.position if marker.body != "ground" else OSIM_TO_MJ @ marker.position
@@ -275,7 +233,7 @@ class MjcfBuilder:
             self.exact[("body", joint.child)] = {"pos": x_world.pos, "quat": matrix_to_quat(x_world.rot)}
         self.bodies[joint.child] = body
         self.ground_frames[joint.child] = self.ground_frames[joint.parent] @ x_pb0
-        self._set_inertial(body, joint)
+        set_inertial(self, body, joint)
         moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
         for ax, kind in moving:
             if self.is_fixed(ax):
@@ -373,7 +331,7 @@ class MjcfBuilder:
         each axis weighed by its main joint's own inertia) and the joints whose translations get a
         body of their own (:meth:`_couplings_body`)."""
         axes, dofs = self.coupled_axes()
-        weights = self._main_inertias([a.name for a in axes]) if axes else {}
+        weights = main_inertias(self, [a.name for a in axes]) if axes else {}
         ranges = {a.base: self.coupling_range(a.base) for a in axes}
         planned, split = plan_skeleton(axes, dofs, weights, ranges, self.ref, targets=COUPLING_TARGET,
                                        slope_targets=COUPLING_SLOPE_TARGET, cache=self.fit_cache)
@@ -406,120 +364,6 @@ class MjcfBuilder:
         """The records of the extra joints :meth:`couple` made for ``joint`` (a caller outside
         this class lists them after the joint's own), once."""
         return self._extra_records.pop(joint, [])
-
-    def _main_inertias(self, joints: list[str]) -> dict[str, float]:
-        """Each of ``joints``' own inertia (kg or kg m², the diagonal of the mass matrix) at the
-        reference pose in the skeleton with plain quartic couplings; {} if it does not compile."""
-        plain = MjcfBuilder(self.skel, plan_couplings=False)
-        plain.build()
-        try:
-            m = plain.spec.compile()
-        except ValueError:
-            return {}
-        d = mujoco.MjData(m)
-        mujoco.mj_forward(m, d)
-        inertia = np.zeros((m.nv, m.nv))
-        mujoco.mj_fullM(m, d, inertia)
-        dofs = {j: int(m.jnt_dofadr[m.joint(j).id]) for j in joints}
-        return {j: float(inertia[k, k]) for j, k in dofs.items()}
-
-    def _set_complement_armature(self) -> None:
-        """Give each complement joint :data:`COMPLEMENT_ARMATURE` times its coordinate joint's own
-        inertia at the reference pose as armature (the two share an axis, so without it the mass
-        matrix is singular) and record what that adds to the coordinate's inertia at most
-        (armature times the largest (f'(q) - 1)² over the coordinate's range)."""
-        if not self._complements:
-            return
-        try:
-            m = self.spec.compile()
-        except ValueError:
-            return  # the conversion's own compile reports what is wrong
-        d = mujoco.MjData(m)
-        mujoco.mj_forward(m, d)
-        inertia = np.zeros((m.nv, m.nv))
-        mujoco.mj_fullM(m, d, inertia)
-        for coord, (name, ax) in self._complements.items():
-            dof = int(m.jnt_dofadr[m.joint(coord).id])
-            armature = COMPLEMENT_ARMATURE * max(float(inertia[dof, dof] - m.dof_armature[dof]), MIN_INERTIA)
-            self.spec.joint(name).armature = armature
-            lo, hi = self.coupling_range(coord)
-            q = np.linspace(lo, hi, 401)
-            slope = np.gradient(np.asarray(ax.function(q), dtype=float), q) - 1.0
-            unit = "kg m^2" if ax.kind == "rotation" else "kg"
-            self.result.approximations.append(Approximation(
-                "Coordinate", coord, f"armature of complement joint '{name}' (shares the coordinate joint's axis)",
-                float(armature * np.max(slope**2)), unit, f"armature {armature:.3g} {unit}"))
-
-    def _set_extra_armature(self) -> None:
-        """Give every extra joint of a coupled axis its armature
-        (:func:`~o2m.convert.coupling_plan.extra_armature`: a multiple of the main joint's own
-        inertia at the reference pose, the skeleton compiled as built so far) and add to each
-        axis's approximation how much its extra joints add to the inertia of its coordinate at
-        most."""
-        mains = self._extras_of
-        if not mains:
-            return
-        try:
-            m = self.spec.compile()
-        except ValueError:
-            return  # the conversion's own compile reports what is wrong
-        d = mujoco.MjData(m)
-        mujoco.mj_forward(m, d)
-        inertia = np.zeros((m.nv, m.nv))
-        mujoco.mj_fullM(m, d, inertia)
-        own = {}
-        for main in mains:
-            dof = int(m.jnt_dofadr[m.joint(main).id])
-            own[main] = float(inertia[dof, dof] - m.dof_armature[dof])
-        armature, added = extra_armature(self._planned, mains, own)
-        for name, value in armature.items():
-            self.spec.joint(name).armature = value
-        approx = {a.joint: a for a in self.result.approximations if a.joint}
-        for main, recs in mains.items():
-            planned = self._planned[main]
-            a = approx.get(main)
-            if a is not None:
-                unit = "kg" if m.jnt_type[m.joint(main).id] == mujoco.mjtJoint.mjJNT_SLIDE else "kg m^2"
-                base = planned.axes[planned.index].base
-                coord_unit = "kg m^2" if self.coord_joint[base][1].kind == "rotation" else "kg"
-                arms = ", ".join(f"{armature[n]:.3g}" for n in recs)
-                a.detail += f"; armature {arms} {unit}, adding at most {added[main]:.3g} {coord_unit} to '{base}'"
-
-    def _set_inertial(self, body: mujoco.MjsBody, joint: Joint) -> None:
-        b = self.skel.bodies[joint.child]
-        mass, inertia = b.mass, b.inertia.copy()
-        if mass == 0.0:  # OpenSim ignores the inertia of a massless body
-            inertia[:] = 0.0
-        moving = not all(self.is_fixed(ax) for ax in joint.rotations + joint.translations)
-        if moving and mass < MIN_MASS:
-            self.result.approximations.append(Approximation(
-                "Body", b.name, f"massless moving body given {MIN_MASS:g} kg (MuJoCo needs mass)", MIN_MASS, "kg"))
-            mass = MIN_MASS
-        eig = np.linalg.eigvalsh(inertia)
-        if eig.min() < MIN_INERTIA:  # MuJoCo needs positive inertia, also on welded bodies
-            inertia = inertia + np.eye(3) * (MIN_INERTIA - min(0.0, eig.min()))
-            self.result.approximations.append(Approximation(
-                "Body", b.name, f"inertia raised by {MIN_INERTIA:g} kg m² (MuJoCo needs positive inertia)",
-                MIN_INERTIA, "kg m^2"))
-        inertia = self._physical_inertia(b.name, inertia)
-        body.explicitinertial = True
-        body.mass = mass
-        body.ipos = b.com
-        body.fullinertia = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
-        self.exact[("inertial", b.name)] = {"pos": b.com, "mass": mass, "fullinertia": np.array(body.fullinertia)}
-
-    def _physical_inertia(self, name: str, inertia: np.ndarray) -> np.ndarray:
-        """``inertia`` (3, 3), with its largest principal moment lowered to the sum of the other two
-        when it breaks the triangle inequality A + B >= C, which MuJoCo enforces."""
-        eig, vec = np.linalg.eigh(inertia)
-        if eig[0] + eig[1] >= eig[2] * (1 - 1e-12):
-            return inertia
-        fixed = eig.copy()
-        fixed[2] = (eig[0] + eig[1]) * (1 - 1e-5)  # inside by more than the MJCF's printed precision
-        self.result.approximations.append(Approximation(
-            "Body", name, "largest principal inertia lowered to the sum of the other two (A + B >= C)",
-            float(eig[2] - fixed[2]), "kg m^2", f"from {eig[2]:.4g} to {fixed[2]:.4g}"))
-        return vec @ np.diag(fixed) @ vec.T
 
     def _add_mj_joint(self, body: mujoco.MjsBody, joint: Joint, ax: TransformAxis, kind: str,
                       axis: np.ndarray, pos: np.ndarray, ref: float) -> None:
@@ -574,7 +418,7 @@ class MjcfBuilder:
         coord = ax.coordinate
         name = f"{joint.name}_{ax.name}"
         rec = self._new_mj_joint(body, name, kind, unit, pos, ref, joint, ax, None)
-        self.spec.joint(name).armature = COMPLEMENT_ARMATURE  # until _set_complement_armature scales it
+        self.spec.joint(name).armature = COMPLEMENT_ARMATURE  # until set_complement_armature scales it
         self.couple(rec, self.drivers[coord].then(lambda q, fn=ax.function: _rest(fn, q)), ref, ax.element)
         self._close_joint(rec)
         self._complements[coord] = (name, ax)
@@ -638,13 +482,13 @@ class MjcfBuilder:
         """Add ``extra`` right after joint ``rec`` on its body, with its type, axis and anchor (so
         that their values add to its value), and their equalities. Each extra joint is 0 at the
         reference pose and is a real degree of freedom of the body; its armature is ``armature``,
-        or when None set by :meth:`_set_extra_armature` once the skeleton is built."""
+        or when None set by :func:`~o2m.convert.inertials.set_extra_armature` once the skeleton is built."""
         body, jtype, axis, pos = self._joint_frames[rec.name]
         for name, driver, coef, role in extra:
             if name in self._joint_frames or any(r.name == name for r in self.result.joints):
                 raise self.doc.error(source, f"would make a second MuJoCo joint named '{name}'")
             body.add_joint(name=name, type=jtype, axis=axis, pos=pos, ref=0.0,
-                           armature=1.0 if armature is None else armature)  # None: see _set_extra_armature
+                           armature=1.0 if armature is None else armature)  # None: see set_extra_armature
             self.exact[("joint", name)] = {"axis": axis, "pos": pos, "ref": 0.0}
             self._joint_frames[name] = (body, jtype, axis, pos)
             self._extras_of.setdefault(rec.name, []).append(name)

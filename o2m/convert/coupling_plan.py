@@ -92,7 +92,7 @@ class PlannedAxis:
     lo: float
     hi: float
     #: armature (kg or kg m²) of each extra joint, set when planned (path-point carriers); None:
-    #: set by :meth:`MjcfBuilder._set_extra_armature` once the skeleton is built
+    #: set by :func:`o2m.convert.inertials.set_extra_armature` once the skeleton is built
     armature: float | None = None
 
 
@@ -301,7 +301,7 @@ def plan_group(group: list[CoupledAxis], keys: list[object], room: Mapping[objec
     weight. That costs little on a slide, which moves millimetres (6 kg on a knee's inner
     slide adds 1e-5 kg m² to the knee), but much on a hinge, which moves a tenth of a radian:
     so an axis drives outer joints only from inner slides or from inner hinges of axes at
-    least as heavy (``weight``: each main joint's own inertia, :meth:`MjcfBuilder._main_inertias`).
+    least as heavy (``weight``: each main joint's own inertia, :func:`o2m.convert.inertials.main_inertias`).
 
     Start (when a plain quartic misses its target): one inner joint on the heaviest axis that
     misses and has room (the most room on ties) and one outer joint for each axis that misses,
