@@ -240,11 +240,15 @@ class SkeletonReader:
 
     # -- elements ----------------------------------------------------------------------
     def set_objects(self, set_tag: str) -> list[etree._Element]:
+        """The objects of the model's ``set_tag`` sets; one sharing its path with an earlier one (two
+        muscles of one name, say) raises an error naming both (:meth:`OsimDocument.check_unique`)."""
         objs: list[etree._Element] = []
         for s in self.model.findall(set_tag):
             holder = s.find("objects")
             if holder is not None:
                 objs.extend(c for c in holder if isinstance(c.tag, str))
+        for el in objs:
+            self.doc.check_unique(el)
         return objs
 
     def check_known(self, el: etree._Element) -> None:
