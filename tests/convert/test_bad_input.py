@@ -26,10 +26,11 @@ osim.Logger.setLevelString("error")
 SPLINE = ('<SimmSpline name="function"><x>-2 -1 0 0.5</x><y>0.001 0.004 -0.002 -0.005</y></SimmSpline>')
 
 
-def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False) -> str:
+def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False, muscle: bool = False) -> str:
     """ground -PinJoint j1-> b1 -CustomJoint knee-> b2, offsets on both sides; the knee's
     translation1 is a SimmSpline. ``mesh`` attaches a Mesh geometry file to b1;
-    ``ellipsoid`` makes j1 an EllipsoidJoint."""
+    ``ellipsoid`` makes j1 an EllipsoidJoint; ``muscle`` adds a Thelen2003Muscle m1 from b1 to
+    b2 that wraps a WrapCylinder cyl on b1."""
     m = osim.Model()
     m.setName(path.stem)
     b1 = osim.Body("b1", 2.0, osim.Vec3(0.05, -0.2, 0.01), osim.Inertia(0.03, 0.012, 0.028, 0.0015, -0.0008, 0.002))
@@ -60,6 +61,8 @@ def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False)
     knee.upd_coordinates(0).setRangeMax(0.5)
     if mesh:
         b1.attachGeometry(osim.Mesh(mesh))
+    if muscle:
+        _add_muscle(m, b1, b2)
     m.finalizeConnections()
     m.printToXML(str(path))
     tree = etree.parse(str(path))
@@ -68,6 +71,21 @@ def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False)
     ta.append(etree.fromstring(SPLINE))
     tree.write(str(path), xml_declaration=True, encoding="UTF-8")
     return path.read_text()
+
+
+def _add_muscle(m, b1, b2) -> None:
+    """Thelen2003Muscle m1 (300 N) from b1 to b2, over WrapCylinder cyl (radius 0.02 m) on b1."""
+    mus = osim.Thelen2003Muscle("m1", 300.0, 0.1, 0.2, 0.1)
+    mus.addNewPathPoint("m1-origin", b1, osim.Vec3(0.02, -0.1, 0.03))
+    mus.addNewPathPoint("m1-insertion", b2, osim.Vec3(0.0, -0.1, 0.02))
+    m.addForce(mus)
+    cyl = osim.WrapCylinder()
+    cyl.setName("cyl")
+    cyl.set_radius(0.02)
+    cyl.set_length(0.1)
+    cyl.set_translation(osim.Vec3(0.04, -0.35, 0.02))
+    b1.addWrapObject(cyl)
+    mus.updGeometryPath().addPathWrap(cyl)
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +164,28 @@ def _case(name: str, base: str, tmp_path: Path) -> Case:
         text = base.replace(f"<inertia>{old}</inertia>", "<inertia>0.02 0.009 abc 0 0 0</inertia>")
         tag = '<Body name="b2">'
         return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "abc", "inertia"])
+    if name in MORE_CASES:
+        return MORE_CASES[name](base, tmp_path)
     raise ValueError(name)
+
+
+#: A mesh file (a tetrahedron, OBJ) the mesh cases write beside the model.
+OBJ = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+MESH_FILE = "<mesh_file>bone.obj</mesh_file>"
+
+
+def _mesh_case(tmp_path: Path, extra: str, expect: str) -> Case:
+    """The base model with b1's Mesh (whose file exists) given ``extra`` properties."""
+    text = _build_base(tmp_path / "mesh_src.osim", mesh="bone.obj").replace(MESH_FILE, extra + MESH_FILE)
+    (tmp_path / "bone.obj").write_text(OBJ)
+    tag = '<Mesh name="b1_geom_1">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", expect])
+
+
+MORE_CASES = {
+    "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
+    "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
+}
 
 
 def text_between(text: str, after: str, start: str, end: str) -> str:
@@ -156,7 +195,7 @@ def text_between(text: str, after: str, start: str, end: str) -> str:
 
 CASES = ["missing-file", "truncated", "empty", "not-opensim", "unknown-joint", "ellipsoid-joint",
          "scapulothoracic-joint", "unknown-function", "bad-joint-socket", "bad-frame-socket", "mass-text",
-         "inertia-text"]
+         "inertia-text", *MORE_CASES]
 
 
 def _write(case: Case, tmp_path: Path, name: str) -> Path:
@@ -243,3 +282,43 @@ def test_missing_mesh_is_not_an_error(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "cli" / "meshy.xml").exists()
+
+
+FAST = {"fit_mechanics": False, "fit_wraps": False}
+
+
+def test_zero_width_range_converts(base, tmp_path):
+    """A coordinate whose range has no width (knee in [0.1, 0.1]) converts, its joint the coordinate's."""
+    path = tmp_path / "still.osim"
+    path.write_text(base.replace("<range>-2 0.5</range>", "<range>0.1 0.1</range>"))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    assert any(j.coordinate == "knee" and j.name == "knee" for j in conv.report.joints)
+
+
+def _unreadable_mesh(path: Path, how: str, monkeypatch) -> None:
+    if how == "corrupt":
+        (path.parent / "bone.vtp").write_text("<VTKFile garbage")
+    else:  # a file the user may not read (root reads every file: refuse it as the OS would)
+        (path.parent / "bone.vtp").write_text("<VTKFile/>")
+        real = Path.read_bytes
+
+        def read_bytes(self):
+            if self.name == "bone.vtp":
+                raise PermissionError(13, "Permission denied", str(self))
+            return real(self)
+
+        monkeypatch.setattr(Path, "read_bytes", read_bytes)
+
+
+@pytest.mark.parametrize("how", ["corrupt", "no-permission"])
+def test_unreadable_mesh_is_skipped(how, tmp_path, monkeypatch):
+    """A mesh file that exists but cannot be read is skipped, as a missing one: the report says why."""
+    path = tmp_path / "meshy.osim"
+    _build_base(path, mesh="bone.vtp")
+    _unreadable_mesh(path, how, monkeypatch)
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    (skipped,) = [s for s in conv.report.skipped if s.element == "Mesh"]
+    assert "bone.vtp" in skipped.reason and "cannot be read" in skipped.reason
+    assert ("Permission denied" if how == "no-permission" else "malformed XML") in skipped.reason
+    assert any("cannot be read" in w for w in conv.report.warnings)
+    assert not list((tmp_path / "out" / "meshes").glob("*.stl"))
