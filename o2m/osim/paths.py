@@ -4,6 +4,7 @@ and the wrap objects a path uses. Units: metres, radians, in the OpenSim body fr
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,6 +21,18 @@ MUSCLE_TYPES = frozenset({
 })
 PATH_TYPES = MUSCLE_TYPES | {"PathActuator", "Ligament", "PathSpring"}
 WRAP_TYPES = frozenset({"WrapSphere", "WrapCylinder", "WrapEllipsoid", "WrapTorus"})
+#: A muscle's numbers o2m reads, and the interval each must lie in when given: (low, high, whether
+#: low itself is allowed). A negative max isometric force would become MuJoCo's "compute the force
+#: automatically", a NaN length or angle MuJoCo's defaults; OpenSim itself rejects a pennation angle
+#: outside [0, pi/2) and fails to equilibrate the others.
+MUSCLE_NUMBERS = {
+    "max_isometric_force": (0.0, math.inf, False),
+    "optimal_fiber_length": (0.0, math.inf, False),
+    "tendon_slack_length": (0.0, math.inf, True),
+    "pennation_angle_at_optimal": (0.0, math.pi / 2, True),
+    "activation_time_constant": (0.0, math.inf, False),
+    "deactivation_time_constant": (0.0, math.inf, False),
+}
 
 
 @dataclass
@@ -156,6 +169,8 @@ def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
     for el in reader.set_objects("ForceSet"):
         if el.tag not in PATH_TYPES:
             continue
+        if el.tag in MUSCLE_TYPES:
+            check_muscle_numbers(reader, el)
         gp = el.find("GeometryPath")
         if gp is None:
             raise doc.error(el, "has no <GeometryPath>")
@@ -169,3 +184,16 @@ def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
             wraps.append(PathWrap((pw.findtext("wrap_object") or "").strip(), rng))
         paths.append(Path(el.get("name"), el.tag, points, wraps, el))
     return paths
+
+
+def check_muscle_numbers(reader: SkeletonReader, el: etree._Element) -> None:
+    """Raise an error naming muscle ``el`` when one of its :data:`MUSCLE_NUMBERS` is not a number in
+    its interval (negative or zero forces and lengths, NaN, a pennation angle of pi/2 or more)."""
+    for prop, (lo, hi, closed) in MUSCLE_NUMBERS.items():
+        child = el.find(prop)
+        if child is None:
+            continue
+        v = float(_floats(child, 1, reader.doc, prop)[0])
+        if not ((v >= lo if closed else v > lo) and v < hi):
+            where = f"[{lo:g}, {hi:g})" if closed else f"({lo:g}, {hi:g})"
+            raise reader.doc.error(el, f"has <{prop}> {v:g}, outside {where}")

@@ -182,9 +182,21 @@ def _mesh_case(tmp_path: Path, extra: str, expect: str) -> Case:
     return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", expect])
 
 
+def _muscle_case(tmp_path: Path, prop: str, value: str) -> Case:
+    """The base model with muscle m1 whose ``prop`` is ``value``."""
+    text = _build_base(tmp_path / "muscle_src.osim", muscle=True)
+    old = text_between(text, '<Thelen2003Muscle name="m1">', f"<{prop}>", f"</{prop}>")
+    text = text.replace(f"<{prop}>{old}</{prop}>", f"<{prop}>{value}</{prop}>", 1)
+    tag = '<Thelen2003Muscle name="m1">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", prop])
+
+
 MORE_CASES = {
     "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
     "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
+    "muscle-negative-force": lambda base, tmp: _muscle_case(tmp, "max_isometric_force", "-1000"),
+    "muscle-nan-fiber-length": lambda base, tmp: _muscle_case(tmp, "optimal_fiber_length", "NaN"),
+    "muscle-nan-pennation": lambda base, tmp: _muscle_case(tmp, "pennation_angle_at_optimal", "nan"),
 }
 
 
