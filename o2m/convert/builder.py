@@ -70,6 +70,7 @@ from o2m.convert.inertials import (
     set_extra_armature,
     set_inertial,
 )
+from o2m.convert.polyfit import FitError
 from o2m.convert.records import Approximation, BuildResult, JointRecord
 from o2m.mj import mjcf_text
 from o2m.osim.skeleton import Joint, Skeleton, TransformAxis
@@ -333,8 +334,12 @@ class MjcfBuilder:
         axes, dofs = self.coupled_axes()
         weights = main_inertias(self, [a.name for a in axes]) if axes else {}
         ranges = {a.base: self.coupling_range(a.base) for a in axes}
-        planned, split = plan_skeleton(axes, dofs, weights, ranges, self.ref, targets=COUPLING_TARGET,
-                                       slope_targets=COUPLING_SLOPE_TARGET, cache=self.fit_cache)
+        try:
+            planned, split = plan_skeleton(axes, dofs, weights, ranges, self.ref, targets=COUPLING_TARGET,
+                                           slope_targets=COUPLING_SLOPE_TARGET, cache=self.fit_cache)
+        except FitError as exc:
+            raise self.doc.error(self.skel.coordinates[exc.coordinate].element,
+                                 f"drives couplings MuJoCo's joint equalities cannot follow: {exc}") from None
         self._planned.update(planned)
         self._split.update(split)
 
@@ -349,8 +354,12 @@ class MjcfBuilder:
         joint gets ``armature``."""
         base = group[0].base
         lo, hi = self.coupling_range(base)
-        best = plan_group(group, keys, room, lo, hi, self.ref[base], [1.0] * len(group), targets, slope_targets,
-                          cheaper_too=True, cache=self.fit_cache)
+        try:
+            best = plan_group(group, keys, room, lo, hi, self.ref[base], [1.0] * len(group), targets, slope_targets,
+                              cheaper_too=True, cache=self.fit_cache)
+        except FitError as exc:
+            raise self.doc.error(self.skel.coordinates[base].element,
+                                 f"moves path points MuJoCo's joint equalities cannot follow: {exc}") from None
         self._planned.update(planned_axes(best, group, lo, hi, armature))
         return best
 
@@ -458,7 +467,10 @@ class MjcfBuilder:
             coef = np.array([icpt + slope * base_ref, slope, 0.0, 0.0, 0.0])
             rec.relation = "linear"
         elif planned is None:
-            coef, fields = quartic_coupling(rel, lo, hi, base_ref, rec.name, base, units, base_units)
+            try:
+                coef, fields = quartic_coupling(rel, lo, hi, base_ref, rec.name, base, units, base_units)
+            except FitError as exc:
+                raise self.doc.error(source, f"cannot be followed by a MuJoCo joint equality: {exc}") from None
             rec.relation = "quartic fit"
             self.result.approximations.append(Approximation(source.tag, source.get("name", rec.name), **fields))
         else:

@@ -137,8 +137,9 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
         spec.compile()
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
-        xml_text = restore_geom_precision(xml_text, tendons.exact)
-        xml_path.write_text(_default_pose(xml_text, model.qpos0))
+        xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), model.qpos0)
+        _check_finite(xml_text, osim)
+        xml_path.write_text(xml_text)
         try:  # the written file, as a user will load it
             written = mujoco.MjModel.from_xml_path(str(xml_path))
         except Exception as exc:
@@ -213,6 +214,18 @@ def _default_pose(xml: str, qpos0) -> str:
         if key.get("name") == "default-pose":
             key.set("qpos", mjcf_text.number_text(qpos0))
     return mjcf_text.to_text(root)
+
+
+def _check_finite(xml: str, osim: Path) -> None:
+    """Raise an O2MError when a number of the MJCF text ``xml`` is NaN or infinite (the checks on
+    the input should have refused what led there; MuJoCo would load it and fail in simulation)."""
+    bad = mjcf_text.non_finite(xml)
+    if bad:
+        tag, name, attr, text = bad[0]
+        what = f'<{tag} name="{name}">' if name else f"<{tag}>"
+        raise O2MError(f"{osim}: the converted model has a number that is not finite ({what} {attr}=\"{text}\", "
+                       f"{len(bad)} attribute(s) in all); o2m should have refused the input that led there: "
+                       f"please report it")
 
 
 def _publish(stage: Path, out_dir: Path, stem: str) -> None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from o2m.convert.couplings import COUPLING_GAIN, CouplingFit, fit_couplings, polynomial_slope_errors
-from o2m.convert.polyfit import fit_polynomial
+from o2m.convert.polyfit import FitError, fit_polynomial
 
 #: Worst error a skeleton coupling (a coupled transform axis or a coupler) is fitted to, per
 #: unit: 0.01 mm and 0.005 deg, a tenth of the skeleton's 0.1 mm / 0.05 deg budget. A plain
@@ -267,7 +267,11 @@ def plan_skeleton(axes: list[CoupledAxis], dofs: Mapping[tuple[str, str], int], 
             return max(max(ax.max_error / targets[a.units], ax.slope_error / slopes[i] if slopes else 0.0)
                        for i, (ax, a) in enumerate(zip(f.axes, group, strict=True)))
 
-        best = plan_group(group, *room(False), lo, hi, refs[base], weight, aims, slope_targets=slopes, cache=cache)
+        try:
+            best = plan_group(group, *room(False), lo, hi, refs[base], weight, aims, slope_targets=slopes,
+                              cache=cache)
+        except FitError as exc:
+            raise FitError(str(exc), coordinate=base) from None
         worst = worst_of(best)
         if worst > 1:
             split = plan_group(group, *room(True), lo, hi, refs[base], weight, aims, slope_targets=slopes,

@@ -20,6 +20,11 @@ from o2m.osim import runtime
 
 #: First document version of the OpenSim 4.x format.
 VERSION_4 = 40000
+#: The largest magnitude a number of the model may have (MuJoCo's mjMAXVAL: its simulation treats
+#: larger positions, speeds and accelerations as diverged); a length of 1e300 m would pass every
+#: other check and give a model that fails at its first step, a spline value of 1e300 a joint
+#: equality of infinite coefficients.
+MAX_MAGNITUDE = 1e10
 
 #: Default component names of the model's sets, used when a set has no name attribute.
 _SET_NAMES = {

@@ -23,7 +23,7 @@ from lxml import etree
 
 from o2m.errors import UnsupportedElementError
 from o2m.osim import runtime
-from o2m.osim.document import OsimDocument
+from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.functions import Function, parse_function
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
@@ -64,6 +64,9 @@ def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: s
         raise doc.error(el.getparent(), f"<{what}> has {vals.size} numbers, expected {n}")
     if not np.all(np.isfinite(vals)):
         raise doc.error(el.getparent(), f"<{what}> holds a non-finite number")
+    if np.any(np.abs(vals) > MAX_MAGNITUDE):
+        raise doc.error(el.getparent(), f"<{what}> holds {vals[np.argmax(np.abs(vals))]:g}, beyond "
+                                        f"{MAX_MAGNITUDE:g}, MuJoCo's largest value")
     return vals
 
 

@@ -17,6 +17,7 @@ import opensim as osim
 import pytest
 from lxml import etree
 
+from o2m.convert import converter
 from o2m.convert.converter import convert
 from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
 from tests.helpers import convert_options
@@ -191,12 +192,28 @@ def _muscle_case(tmp_path: Path, prop: str, value: str) -> Case:
     return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", prop])
 
 
+def _huge_spline(base: str, tmp_path: Path) -> Case:
+    text = base.replace("<y>0.001 0.004 -0.002 -0.005</y>", "<y>0.001 1e300 -0.002 -0.005</y>")
+    return Case(text, UnsupportedElementError,
+                ['<SimmSpline name="function">', f"line {line_of(text, '<SimmSpline')}", "1e+300"])
+
+
+def _huge_location(base: str, tmp_path: Path) -> Case:
+    text = _build_base(tmp_path / "far_src.osim", muscle=True)
+    old = text_between(text, '<PathPoint name="m1-insertion">', "<location>", "</location>")
+    text = text.replace(f"<location>{old}</location>", "<location>0 1e300 0</location>")
+    tag = '<PathPoint name="m1-insertion">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "1e+300"])
+
+
 MORE_CASES = {
     "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
     "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
     "muscle-negative-force": lambda base, tmp: _muscle_case(tmp, "max_isometric_force", "-1000"),
     "muscle-nan-fiber-length": lambda base, tmp: _muscle_case(tmp, "optimal_fiber_length", "NaN"),
     "muscle-nan-pennation": lambda base, tmp: _muscle_case(tmp, "pennation_angle_at_optimal", "nan"),
+    "spline-huge-value": _huge_spline,
+    "path-point-far-out": _huge_location,
 }
 
 
@@ -334,3 +351,11 @@ def test_unreadable_mesh_is_skipped(how, tmp_path, monkeypatch):
     assert ("Permission denied" if how == "no-permission" else "malformed XML") in skipped.reason
     assert any("cannot be read" in w for w in conv.report.warnings)
     assert not list((tmp_path / "out" / "meshes").glob("*.stl"))
+
+
+def test_a_non_finite_number_in_the_output_is_an_error(tmp_path):
+    """The last check before writing: a NaN in the MJCF (which MuJoCo would load) stops the conversion."""
+    xml = '<mujoco><equality><joint name="e" joint1="a" polycoef="nan inf 0 0 0"/></equality></mujoco>'
+    with pytest.raises(O2MError, match=r'<joint name="e"> polycoef="nan inf 0 0 0"'):
+        converter._check_finite(xml, tmp_path / "model.osim")
+    converter._check_finite(xml.replace("nan inf", "0 1"), tmp_path / "model.osim")
