@@ -192,6 +192,12 @@ def _muscle_case(tmp_path: Path, prop: str, value: str) -> Case:
     return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", prop])
 
 
+def _zero_radius_wrap(base: str, tmp_path: Path) -> Case:
+    text = _build_base(tmp_path / "wrap_src.osim", muscle=True).replace("<radius>0.02</radius>", "<radius>0</radius>")
+    tag = '<WrapCylinder name="cyl">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "radius", "positive"])
+
+
 def _huge_spline(base: str, tmp_path: Path) -> Case:
     text = base.replace("<y>0.001 0.004 -0.002 -0.005</y>", "<y>0.001 1e300 -0.002 -0.005</y>")
     return Case(text, UnsupportedElementError,
@@ -212,6 +218,7 @@ MORE_CASES = {
     "muscle-negative-force": lambda base, tmp: _muscle_case(tmp, "max_isometric_force", "-1000"),
     "muscle-nan-fiber-length": lambda base, tmp: _muscle_case(tmp, "optimal_fiber_length", "NaN"),
     "muscle-nan-pennation": lambda base, tmp: _muscle_case(tmp, "pennation_angle_at_optimal", "nan"),
+    "wrap-zero-radius": _zero_radius_wrap,
     "spline-huge-value": _huge_spline,
     "path-point-far-out": _huge_location,
 }
