@@ -22,6 +22,7 @@ import numpy as np
 from o2m.convert import forces
 from o2m.convert.builder import Approximation, MjcfBuilder
 from o2m.convert.lengthvia import add_length_vias
+from o2m.convert.massless import check_massless
 from o2m.convert.muscles import fit_muscles
 from o2m.convert.pathforces import PATH_FORCE_MODES
 from o2m.convert.report import ConversionReport
@@ -96,6 +97,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     skel = read_skeleton(doc)
     builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics)
     result = builder.build()
+    massless = check_massless(skel, builder, osim)
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
     wraps = read_wrap_objects(reader)
@@ -145,7 +147,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
         except Exception as exc:
             raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
         forces.measure(force_conv, written, osim, builder)
-        warnings = [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
+        warnings = massless + [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
         report = ConversionReport(
             model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
             seconds=time.perf_counter() - t0,

@@ -212,6 +212,18 @@ def _huge_location(base: str, tmp_path: Path) -> Case:
     return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "1e+300"])
 
 
+def _massless(base: str, tmp_path: Path) -> Case:
+    """b1 and b2 massless: OpenSim refuses the model (a terminal massless body), o2m too."""
+    text = base
+    for body in ("b1", "b2"):
+        mass = text_between(text, f'<Body name="{body}">', "<mass>", "</mass>")
+        inertia = text_between(text, f'<Body name="{body}">', "<inertia>", "</inertia>")
+        text = text.replace(f"<mass>{mass}</mass>", "<mass>0</mass>", 1)
+        text = text.replace(f"<inertia>{inertia}</inertia>", "<inertia>0 0 0 0 0 0</inertia>", 1)
+    tag = '<Body name="b1">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "no mass", "OpenSim"])
+
+
 MORE_CASES = {
     "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
     "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
@@ -221,6 +233,7 @@ MORE_CASES = {
     "wrap-zero-radius": _zero_radius_wrap,
     "spline-huge-value": _huge_spline,
     "path-point-far-out": _huge_location,
+    "massless-bodies": _massless,
 }
 
 
@@ -329,6 +342,15 @@ def test_zero_width_range_converts(base, tmp_path):
     path.write_text(base.replace("<range>-2 0.5</range>", "<range>0.1 0.1</range>"))
     conv = convert(path, tmp_path / "out", convert_options(**FAST))
     assert any(j.coordinate == "knee" and j.name == "knee" for j in conv.report.joints)
+
+
+def test_massless_leaf_that_opensim_accepts_converts_with_a_warning(base, tmp_path):
+    """b2 massless (OpenSim loads the model): converted, the report's warnings name b2."""
+    mass = text_between(base, '<Body name="b2">', "<mass>", "</mass>")
+    path = tmp_path / "light.osim"
+    path.write_text(base.replace(f"<mass>{mass}</mass>", "<mass>0</mass>"))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    assert any(w.startswith("Body b2:") and "no mass" in w for w in conv.report.warnings), conv.report.warnings
 
 
 def _unreadable_mesh(path: Path, how: str, monkeypatch) -> None:
