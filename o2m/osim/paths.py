@@ -149,7 +149,7 @@ def read_wrap_objects(reader: SkeletonReader) -> dict[str, WrapObject]:
             pos = _floats(el.find("translation"), 3, doc, "translation") if el.find("translation") is not None \
                 else np.zeros(3)
             w = WrapObject(el.get("name"), el.tag[4:].lower(), body, x_body @ Transform(rot, pos), element=el)
-            w.quadrant = (el.findtext("quadrant") or "all").strip()
+            w.quadrant = _quadrant(doc, el)
             w.active = (el.findtext("active") or "true").strip().lower() != "false"
             for prop in ("radius", "length", "inner_radius", "outer_radius"):
                 if el.find(prop) is not None:
@@ -160,6 +160,19 @@ def read_wrap_objects(reader: SkeletonReader) -> dict[str, WrapObject]:
                 raise doc.error(el, "is a second wrap object with this name")
             out[w.name] = w
     return out
+
+
+#: OpenSim's wrap quadrants, each as o2m writes it ("all", or the sign and the axis).
+QUADRANTS = {"all": "all", "": "all", **{f"{a}{s}": f"{s}{a}" for a in "xyz" for s in "+-"},
+             **{f"{s}{a}": f"{s}{a}" for a in "xyz" for s in "+-"}, **{a: f"+{a}" for a in "xyz"}}
+
+
+def _quadrant(doc, el: etree._Element) -> str:
+    """The wrap object's quadrant ("all", "+x", "-y", ...); an error naming it for another word."""
+    text = (el.findtext("quadrant") or "all").strip()
+    if text.lower() not in QUADRANTS:
+        raise doc.error(el, f"has <quadrant> '{text}', not one of OpenSim's (all, +x, -x, +y, -y, +z, -z)")
+    return QUADRANTS[text.lower()]
 
 
 def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:

@@ -42,6 +42,8 @@ JOINT_AXES: dict[str, list[tuple[str, tuple[float, float, float]]]] = {
     "PlanarJoint": [("rotation", _Z), ("translation", _X), ("translation", _Y)],
 }
 SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"}
+#: The six axes of a CustomJoint's SpatialTransform.
+TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
 
 
 @cache
@@ -327,11 +329,15 @@ class SkeletonReader:
             st = el.find("SpatialTransform")
             if st is None:
                 raise self.doc.error(el, "has no <SpatialTransform>")
+            seen: set[str] = set()
             for ta in st.findall("TransformAxis"):
                 axname = ta.get("name", "")
                 kind = "rotation" if axname.startswith("rotation") else "translation"
-                if not (axname.startswith("rotation") or axname.startswith("translation")):
+                if axname not in TRANSFORM_AXES:
                     raise self.doc.error(ta, "is not named rotation1-3 or translation1-3")
+                if axname in seen:
+                    raise self.doc.error(ta, f"is a second {axname} of this SpatialTransform")
+                seen.add(axname)
                 axis = _floats(ta.find("axis"), 3, self.doc, "axis")
                 norm = np.linalg.norm(axis)
                 if norm < 1e-12:

@@ -8,6 +8,7 @@ lists the mesh as skipped.
 
 from __future__ import annotations
 
+import copy
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -224,6 +225,23 @@ def _massless(base: str, tmp_path: Path) -> Case:
     return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "no mass", "OpenSim"])
 
 
+def _second_transform_axis(base: str, tmp_path: Path) -> Case:
+    """The knee's rotation1 TransformAxis twice (a crash inside the builder once)."""
+    root = etree.fromstring(base.encode())
+    (ta,) = root.xpath("//CustomJoint[@name='knee']/SpatialTransform/TransformAxis[@name='rotation1']")
+    ta.addnext(copy.deepcopy(ta))
+    text = '<?xml version="1.0" encoding="UTF-8" ?>\n' + etree.tostring(root, encoding="unicode")
+    second = etree.fromstring(text.encode()).xpath("//TransformAxis[@name='rotation1']")[1].sourceline
+    return Case(text, UnsupportedElementError, ['<TransformAxis name="rotation1">', f"line {second}", "second"])
+
+
+def _quadrant_word(base: str, tmp_path: Path) -> Case:
+    text = _build_base(tmp_path / "quadrant_src.osim", muscle=True).replace("<quadrant>all</quadrant>",
+                                                                            "<quadrant>up</quadrant>")
+    tag = '<WrapCylinder name="cyl">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "quadrant", "'up'"])
+
+
 MORE_CASES = {
     "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
     "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
@@ -234,6 +252,8 @@ MORE_CASES = {
     "spline-huge-value": _huge_spline,
     "path-point-far-out": _huge_location,
     "massless-bodies": _massless,
+    "second-transform-axis": _second_transform_axis,
+    "wrap-quadrant-word": _quadrant_word,
 }
 
 
