@@ -148,6 +148,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
             raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
         forces.measure(force_conv, written, osim, builder)
         warnings = massless + [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
+        warnings += _divergence(written)
         report = ConversionReport(
             model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
             seconds=time.perf_counter() - t0,
@@ -228,6 +229,26 @@ def _check_finite(xml: str, osim: Path) -> None:
         raise O2MError(f"{osim}: the converted model has a number that is not finite ({what} {attr}=\"{text}\", "
                        f"{len(bad)} attribute(s) in all); o2m should have refused the input that led there: "
                        f"please report it")
+
+
+#: Steps (MuJoCo's 2 ms each) the written model is simulated for, without controls, to check that it does not diverge.
+STABILITY_STEPS = 100
+_DIVERGED = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def _divergence(model: mujoco.MjModel) -> list[str]:
+    """A warning (in a list) when ``model`` diverges within :data:`STABILITY_STEPS` steps from its
+    default pose without controls (MuJoCo then resets it); none when it does not. A number of the
+    input far out of scale (a default value of 1e7 m, a max isometric force of 1e8 N) passes
+    every check on the input and gives such a model; so does a massless model."""
+    data = mujoco.MjData(model)
+    for _ in range(STABILITY_STEPS):
+        mujoco.mj_step(model, data)
+        bad = [w.name for w in _DIVERGED if data.warning[int(w)].number]
+        if bad:
+            return [f"the converted model diverges in MuJoCo {data.time:.3f} s after its default pose without "
+                    f"controls ({', '.join(bad)}): a number of the input may be far out of scale"]
+    return []
 
 
 def _publish(stage: Path, out_dir: Path, stem: str) -> None:

@@ -408,3 +408,13 @@ def test_a_non_finite_number_in_the_output_is_an_error(tmp_path):
     with pytest.raises(O2MError, match=r'<joint name="e"> polycoef="nan inf 0 0 0"'):
         converter._check_finite(xml, tmp_path / "model.osim")
     converter._check_finite(xml.replace("nan inf", "0 1"), tmp_path / "model.osim")
+
+
+def test_a_model_far_out_of_scale_converts_with_a_warning(base, tmp_path):
+    """A number far out of scale but below the 1e10 o2m refuses (b1's centre of mass 1e8 m out)
+    gives a model that diverges at its first step: the report says so."""
+    com = text_between(base, '<Body name="b1">', "<mass_center>", "</mass_center>")
+    path = tmp_path / "far.osim"
+    path.write_text(base.replace(f"<mass_center>{com}</mass_center>", "<mass_center>0 -1e8 0</mass_center>", 1))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    assert any("diverges in MuJoCo" in w for w in conv.report.warnings), conv.report.warnings
