@@ -18,12 +18,14 @@ class UnsupportedElementError(O2MError):
     """The document holds an element o2m does not know or cannot convert faithfully.
 
     ``element`` is the XML tag, ``name`` the element's name attribute, ``line`` its line in
-    the file the user gave (None when it cannot be located).
+    the file the user gave (None when it cannot be located), ``message`` what is wrong (the
+    text after the element).
     """
 
     def __init__(self, message: str, *, element: str | None = None, name: str | None = None,
                  line: int | None = None, path: str | None = None):
         self.element, self.name, self.line, self.path = element, name, line, path
+        self.message = message
         where = []
         if path:
             where.append(str(path))

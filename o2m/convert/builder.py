@@ -39,7 +39,6 @@ import mujoco
 import numpy as np
 from lxml import etree
 
-from o2m.convert.armature import COMPLEMENT_ARMATURE, main_inertias, set_complement_armature, set_extra_armature
 from o2m.convert.coordinates import (
     Driver,
     as_linear,
@@ -64,13 +63,19 @@ from o2m.convert.coupling_plan import (
     quartic_coupling,
 )
 from o2m.convert.couplings import AxisFit, CouplingFit
-from o2m.convert.records import MIN_INERTIA, Approximation, BuildResult, JointRecord
+from o2m.convert.inertials import (
+    COMPLEMENT_ARMATURE,
+    main_inertias,
+    set_complement_armature,
+    set_extra_armature,
+    set_inertial,
+)
+from o2m.convert.polyfit import FitError
+from o2m.convert.records import Approximation, BuildResult, JointRecord
 from o2m.mj import mjcf_text
 from o2m.osim.skeleton import Joint, Skeleton, TransformAxis
 from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat
 
-#: Mass (kg) given to massless moving bodies, which MuJoCo rejects (inertia: MIN_INERTIA).
-MIN_MASS = 1e-8
 #: Softness of every joint equality o2m writes (couplers, coupled axes, path-point carriers): the
 #: shortest time constant MuJoCo allows at the default 2 ms step, critically damped, and an
 #: impedance of 0.999, so a load deflects a coupling by about 1e-3 of what MuJoCo's default
@@ -82,7 +87,6 @@ EQUALITY_SOLIMP = (0.999, 0.999, 0.001, 0.5, 2.0)
 #: OpenSim's. Its slides move the OpenSim body hanging from it, so their inertia is that body's.
 COUPLINGS_BODY_MASS = 1e-12
 COUPLINGS_BODY_INERTIA = 1e-14
-
 
 
 def _rest(fn, q: np.ndarray) -> np.ndarray:
@@ -230,7 +234,7 @@ class MjcfBuilder:
             self.exact[("body", joint.child)] = {"pos": x_world.pos, "quat": matrix_to_quat(x_world.rot)}
         self.bodies[joint.child] = body
         self.ground_frames[joint.child] = self.ground_frames[joint.parent] @ x_pb0
-        self._set_inertial(body, joint)
+        set_inertial(self, body, joint)
         moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
         for ax, kind in moving:
             if self.is_fixed(ax):
@@ -330,8 +334,12 @@ class MjcfBuilder:
         axes, dofs = self.coupled_axes()
         weights = main_inertias(self, [a.name for a in axes]) if axes else {}
         ranges = {a.base: self.coupling_range(a.base) for a in axes}
-        planned, split = plan_skeleton(axes, dofs, weights, ranges, self.ref, targets=COUPLING_TARGET,
-                                       slope_targets=COUPLING_SLOPE_TARGET, cache=self.fit_cache)
+        try:
+            planned, split = plan_skeleton(axes, dofs, weights, ranges, self.ref, targets=COUPLING_TARGET,
+                                           slope_targets=COUPLING_SLOPE_TARGET, cache=self.fit_cache)
+        except FitError as exc:
+            raise self.doc.error(self.skel.coordinates[exc.coordinate].element,
+                                 f"drives couplings MuJoCo's joint equalities cannot follow: {exc}") from None
         self._planned.update(planned)
         self._split.update(split)
 
@@ -346,8 +354,12 @@ class MjcfBuilder:
         joint gets ``armature``."""
         base = group[0].base
         lo, hi = self.coupling_range(base)
-        best = plan_group(group, keys, room, lo, hi, self.ref[base], [1.0] * len(group), targets, slope_targets,
-                          cheaper_too=True, cache=self.fit_cache)
+        try:
+            best = plan_group(group, keys, room, lo, hi, self.ref[base], [1.0] * len(group), targets, slope_targets,
+                              cheaper_too=True, cache=self.fit_cache)
+        except FitError as exc:
+            raise self.doc.error(self.skel.coordinates[base].element,
+                                 f"moves path points MuJoCo's joint equalities cannot follow: {exc}") from None
         self._planned.update(planned_axes(best, group, lo, hi, armature))
         return best
 
@@ -361,42 +373,6 @@ class MjcfBuilder:
         """The records of the extra joints :meth:`couple` made for ``joint`` (a caller outside
         this class lists them after the joint's own), once."""
         return self._extra_records.pop(joint, [])
-
-    def _set_inertial(self, body: mujoco.MjsBody, joint: Joint) -> None:
-        b = self.skel.bodies[joint.child]
-        mass, inertia = b.mass, b.inertia.copy()
-        if mass == 0.0:  # OpenSim ignores the inertia of a massless body
-            inertia[:] = 0.0
-        moving = not all(self.is_fixed(ax) for ax in joint.rotations + joint.translations)
-        if moving and mass < MIN_MASS:
-            self.result.approximations.append(Approximation(
-                "Body", b.name, f"massless moving body given {MIN_MASS:g} kg (MuJoCo needs mass)", MIN_MASS, "kg"))
-            mass = MIN_MASS
-        eig = np.linalg.eigvalsh(inertia)
-        if eig.min() < MIN_INERTIA:  # MuJoCo needs positive inertia, also on welded bodies
-            inertia = inertia + np.eye(3) * (MIN_INERTIA - min(0.0, eig.min()))
-            self.result.approximations.append(Approximation(
-                "Body", b.name, f"inertia raised by {MIN_INERTIA:g} kg m² (MuJoCo needs positive inertia)",
-                MIN_INERTIA, "kg m^2"))
-        inertia = self._physical_inertia(b.name, inertia)
-        body.explicitinertial = True
-        body.mass = mass
-        body.ipos = b.com
-        body.fullinertia = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
-        self.exact[("inertial", b.name)] = {"pos": b.com, "mass": mass, "fullinertia": np.array(body.fullinertia)}
-
-    def _physical_inertia(self, name: str, inertia: np.ndarray) -> np.ndarray:
-        """``inertia`` (3, 3), with its largest principal moment lowered to the sum of the other two
-        when it breaks the triangle inequality A + B >= C, which MuJoCo enforces."""
-        eig, vec = np.linalg.eigh(inertia)
-        if eig[0] + eig[1] >= eig[2] * (1 - 1e-12):
-            return inertia
-        fixed = eig.copy()
-        fixed[2] = (eig[0] + eig[1]) * (1 - 1e-5)  # inside by more than the MJCF's printed precision
-        self.result.approximations.append(Approximation(
-            "Body", name, "largest principal inertia lowered to the sum of the other two (A + B >= C)",
-            float(eig[2] - fixed[2]), "kg m^2", f"from {eig[2]:.4g} to {fixed[2]:.4g}"))
-        return vec @ np.diag(fixed) @ vec.T
 
     def _add_mj_joint(self, body: mujoco.MjsBody, joint: Joint, ax: TransformAxis, kind: str,
                       axis: np.ndarray, pos: np.ndarray, ref: float) -> None:
@@ -451,7 +427,7 @@ class MjcfBuilder:
         coord = ax.coordinate
         name = f"{joint.name}_{ax.name}"
         rec = self._new_mj_joint(body, name, kind, unit, pos, ref, joint, ax, None)
-        self.spec.joint(name).armature = COMPLEMENT_ARMATURE  # until _set_complement_armature scales it
+        self.spec.joint(name).armature = COMPLEMENT_ARMATURE  # until set_complement_armature scales it
         self.couple(rec, self.drivers[coord].then(lambda q, fn=ax.function: _rest(fn, q)), ref, ax.element)
         self._close_joint(rec)
         self._complements[coord] = (name, ax)
@@ -491,7 +467,10 @@ class MjcfBuilder:
             coef = np.array([icpt + slope * base_ref, slope, 0.0, 0.0, 0.0])
             rec.relation = "linear"
         elif planned is None:
-            coef, fields = quartic_coupling(rel, lo, hi, base_ref, rec.name, base, units, base_units)
+            try:
+                coef, fields = quartic_coupling(rel, lo, hi, base_ref, rec.name, base, units, base_units)
+            except FitError as exc:
+                raise self.doc.error(source, f"cannot be followed by a MuJoCo joint equality: {exc}") from None
             rec.relation = "quartic fit"
             self.result.approximations.append(Approximation(source.tag, source.get("name", rec.name), **fields))
         else:
@@ -515,13 +494,13 @@ class MjcfBuilder:
         """Add ``extra`` right after joint ``rec`` on its body, with its type, axis and anchor (so
         that their values add to its value), and their equalities. Each extra joint is 0 at the
         reference pose and is a real degree of freedom of the body; its armature is ``armature``,
-        or when None set by :func:`~o2m.convert.armature.set_extra_armature` once the skeleton is built."""
+        or when None set by :func:`~o2m.convert.inertials.set_extra_armature` once the skeleton is built."""
         body, jtype, axis, pos = self._joint_frames[rec.name]
         for name, driver, coef, role in extra:
             if name in self._joint_frames or any(r.name == name for r in self.result.joints):
                 raise self.doc.error(source, f"would make a second MuJoCo joint named '{name}'")
             body.add_joint(name=name, type=jtype, axis=axis, pos=pos, ref=0.0,
-                           armature=1.0 if armature is None else armature)  # None: see _set_extra_armature
+                           armature=1.0 if armature is None else armature)  # None: see set_extra_armature
             self.exact[("joint", name)] = {"axis": axis, "pos": pos, "ref": 0.0}
             self._joint_frames[name] = (body, jtype, axis, pos)
             self._extras_of.setdefault(rec.name, []).append(name)

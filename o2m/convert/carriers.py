@@ -22,7 +22,7 @@ from o2m.convert.coordinates import Driver, as_linear, relative
 from o2m.convert.coupling_plan import MAX_BODY_DOFS, CoupledAxis
 from o2m.convert.couplings import polynomial_slope_errors
 from o2m.convert.pathpoints import PathContext
-from o2m.convert.polyfit import fit_polynomial
+from o2m.convert.polyfit import FitError, fit_polynomial
 from o2m.convert.records import JointRecord
 from o2m.osim.paths import Path, PathPoint
 from o2m.transforms import Transform
@@ -154,7 +154,11 @@ class Carriers:
                     rel = relative(driver, ref)
                     if as_linear(rel, lo, hi) is not None:
                         continue
-                    quartic = fit_polynomial(rel, lo, hi, self.b.ref[base], degree=4, exact_at_x0=True)
+                    try:
+                        quartic = fit_polynomial(rel, lo, hi, self.b.ref[base], degree=4, exact_at_x0=True)
+                    except FitError as exc:
+                        raise self.b.doc.error(point.element, f"moves in a way MuJoCo's joint equalities "
+                                                              f"cannot follow: {exc}") from None
                     s_rms = polynomial_slope_errors(rel, quartic.coef, lo, hi, self.b.ref[base])[1]
                     if s_rms > CARRIER_SLOPE_GATE and self.b.plan_couplings:
                         gated.append((i, base, rel))

@@ -28,13 +28,17 @@ from o2m.transforms import Transform
 #: Radius (m) of the wrap sphere that stands for a ConditionalPathPoint: the tendon passes within
 #: this of the point (exactly through it when it bends as at the reference pose).
 CONDITIONAL_RADIUS = 0.001
+#: A ConditionalPathPoint whose range is no wider than this (rad or m) is active at one value of its
+#: coordinate at most: it is left out (the switch of :func:`conditional_geom` needs a range to fit).
+MIN_RANGE_WIDTH = 1e-9
 
 
 def conditional_roles(ctx: PathContext, path: Path) -> list[str]:
     """For each point of ``path``: ``"site"`` (always on the path), ``"conditional"`` (a
     ConditionalPathPoint made a wrap cylinder) or ``"dropped"`` (a conditional point left out:
-    its coordinate is locked outside its range, or it is not the one of a run of consecutive
-    conditional points that bends the path most). First and last points stay sites."""
+    its coordinate is locked outside its range, its range has no width (:data:`MIN_RANGE_WIDTH`),
+    or it is not the one of a run of consecutive conditional points that bends the path most).
+    First and last points stay sites."""
     pts = path.points
     roles = []
     for i, p in enumerate(pts):
@@ -45,6 +49,12 @@ def conditional_roles(ctx: PathContext, path: Path) -> list[str]:
             roles.append("site")
         elif ctx.fixed(p.condition[0]):
             roles.append("site" if ctx.active(p, ctx.b.coordinate_values()) else "dropped")
+        elif p.condition[2] - p.condition[1] <= MIN_RANGE_WIDTH:
+            roles.append("dropped")
+            ctx.b.result.notes.append(
+                f"{path.owner}: ConditionalPathPoint '{p.name}' left out: its range [{p.condition[1]:g}, "
+                f"{p.condition[2]:g}] of '{p.condition[0]}' has no width, so OpenSim's path has it at that one "
+                f"value only" + (" (the reference pose is there)" if ctx.active(p, ctx.b.coordinate_values()) else ""))
         else:
             roles.append("conditional")
     i = 0

@@ -22,6 +22,7 @@ import numpy as np
 from o2m.convert import forces
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.lengthvia import add_length_vias
+from o2m.convert.massless import check_massless
 from o2m.convert.muscles import fit_muscles
 from o2m.convert.pathforces import PATH_FORCE_MODES
 from o2m.convert.records import Approximation
@@ -97,6 +98,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     skel = read_skeleton(doc)
     builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics)
     result = builder.build()
+    massless = check_massless(skel, builder, osim)
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
     wraps = read_wrap_objects(reader)
@@ -139,14 +141,16 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
         spec.compile()
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
-        xml_text = restore_geom_precision(xml_text, tendons.exact)
-        xml_path.write_text(_default_pose(xml_text, model.qpos0))
+        xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), model.qpos0)
+        _check_finite(xml_text, osim)
+        xml_path.write_text(xml_text)
         try:  # the written file, as a user will load it
             written = mujoco.MjModel.from_xml_path(str(xml_path))
         except Exception as exc:
             raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
         forces.measure(force_conv, written, osim, builder)
-        warnings = [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
+        warnings = massless + [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
+        warnings += _divergence(written)
         report = ConversionReport(
             model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
             seconds=time.perf_counter() - t0,
@@ -215,6 +219,38 @@ def _default_pose(xml: str, qpos0) -> str:
         if key.get("name") == "default-pose":
             key.set("qpos", mjcf_text.number_text(qpos0))
     return mjcf_text.to_text(root)
+
+
+def _check_finite(xml: str, osim: Path) -> None:
+    """Raise an O2MError when a number of the MJCF text ``xml`` is NaN or infinite (the checks on
+    the input should have refused what led there; MuJoCo would load it and fail in simulation)."""
+    bad = mjcf_text.non_finite(xml)
+    if bad:
+        tag, name, attr, text = bad[0]
+        what = f'<{tag} name="{name}">' if name else f"<{tag}>"
+        raise O2MError(f"{osim}: the converted model has a number that is not finite ({what} {attr}=\"{text}\", "
+                       f"{len(bad)} attribute(s) in all); o2m should have refused the input that led there: "
+                       f"please report it")
+
+
+#: Steps (MuJoCo's 2 ms each) the written model is simulated for, without controls, to check that it does not diverge.
+STABILITY_STEPS = 100
+_DIVERGED = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def _divergence(model: mujoco.MjModel) -> list[str]:
+    """A warning (in a list) when ``model`` diverges within :data:`STABILITY_STEPS` steps from its
+    default pose without controls (MuJoCo then resets it); none when it does not. A number of the
+    input far out of scale (a default value of 1e7 m, a max isometric force of 1e8 N) passes
+    every check on the input and gives such a model; so does a massless model."""
+    data = mujoco.MjData(model)
+    for _ in range(STABILITY_STEPS):
+        mujoco.mj_step(model, data)
+        bad = [w.name for w in _DIVERGED if data.warning[int(w)].number]
+        if bad:
+            return [f"the converted model diverges in MuJoCo {data.time:.3f} s after its default pose without "
+                    f"controls ({', '.join(bad)}): a number of the input may be far out of scale"]
+    return []
 
 
 def _publish(stage: Path, out_dir: Path, stem: str) -> None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from o2m.convert.couplings import COUPLING_GAIN, CouplingFit, fit_couplings, polynomial_slope_errors
-from o2m.convert.polyfit import fit_polynomial
+from o2m.convert.polyfit import FitError, fit_polynomial
 
 #: Worst error a skeleton coupling (a coupled transform axis or a coupler) is fitted to, per
 #: unit: 0.01 mm and 0.005 deg, a tenth of the skeleton's 0.1 mm / 0.05 deg budget. A plain
@@ -92,7 +92,7 @@ class PlannedAxis:
     lo: float
     hi: float
     #: armature (kg or kg m²) of each extra joint, set when planned (path-point carriers); None:
-    #: set by :meth:`MjcfBuilder._set_extra_armature` once the skeleton is built
+    #: set by :func:`o2m.convert.inertials.set_extra_armature` once the skeleton is built
     armature: float | None = None
 
 
@@ -267,7 +267,11 @@ def plan_skeleton(axes: list[CoupledAxis], dofs: Mapping[tuple[str, str], int], 
             return max(max(ax.max_error / targets[a.units], ax.slope_error / slopes[i] if slopes else 0.0)
                        for i, (ax, a) in enumerate(zip(f.axes, group, strict=True)))
 
-        best = plan_group(group, *room(False), lo, hi, refs[base], weight, aims, slope_targets=slopes, cache=cache)
+        try:
+            best = plan_group(group, *room(False), lo, hi, refs[base], weight, aims, slope_targets=slopes,
+                              cache=cache)
+        except FitError as exc:
+            raise FitError(str(exc), coordinate=base) from None
         worst = worst_of(best)
         if worst > 1:
             split = plan_group(group, *room(True), lo, hi, refs[base], weight, aims, slope_targets=slopes,
@@ -301,7 +305,7 @@ def plan_group(group: list[CoupledAxis], keys: list[object], room: Mapping[objec
     weight. That costs little on a slide, which moves millimetres (6 kg on a knee's inner
     slide adds 1e-5 kg m² to the knee), but much on a hinge, which moves a tenth of a radian:
     so an axis drives outer joints only from inner slides or from inner hinges of axes at
-    least as heavy (``weight``: each main joint's own inertia, :meth:`MjcfBuilder._main_inertias`).
+    least as heavy (``weight``: each main joint's own inertia, :func:`o2m.convert.inertials.main_inertias`).
 
     Start (when a plain quartic misses its target): one inner joint on the heaviest axis that
     misses and has room (the most room on ties) and one outer joint for each axis that misses,

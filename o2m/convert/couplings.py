@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from o2m.convert.polyfit import fit_polynomial
+from o2m.convert.polyfit import FitError, fit_polynomial
 from o2m.convert.shapesearch import (
     ShapeSearch,
     axis_basis,
@@ -283,9 +283,18 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     problem = _Problem(samples, n, targets, amplitude)
     shapes = _search_shapes(problem, start, uses, len(hosts), seed)
     fit = _measured(problem, _assembled(problem, shapes, uses, hosts))
+    _check_finite(fit)
     if cache is not None:
         cache[key] = fit
     return fit
+
+
+def _check_finite(fit: CouplingFit) -> None:
+    """Raise :class:`~o2m.convert.polyfit.FitError` when a coefficient or an error of ``fit`` is not finite."""
+    numbers = [fit.inners.ravel()] + [np.concatenate([ax.main, *(c for _, c in ax.outers),
+                                                      [ax.max_error, ax.slope_error]]) for ax in fit.axes]
+    if not all(np.all(np.isfinite(v)) for v in numbers):
+        raise FitError(f"the coupling fitted over [{fit.lo:g}, {fit.hi:g}] is not finite")
 
 
 def _checked_start(n_axes: int, lo: float, hi: float, x0: float, targets: Sequence[float],

@@ -130,20 +130,24 @@ def _err(el: etree._Element, msg: str) -> UnsupportedElementError:
     return UnsupportedElementError(msg, element=str(el.tag), name=el.get("name"), line=el.sourceline)
 
 
-def _vector(el: etree._Element, prop: str, n: int, default: list[float] | None = None) -> np.ndarray:
-    """Property ``prop`` of ``el`` as a float array (n,), or ``default`` when absent."""
+def _vector(el: etree._Element, prop: str, n: int, default: list[float] | None = None,
+            owner: etree._Element | None = None) -> np.ndarray:
+    """Property ``prop`` of ``el`` as a float array (n,), or ``default`` when absent; errors name
+    ``owner`` (default ``el``), the geometry element a property of its <Appearance> belongs to."""
+    what = prop if owner is None else f"{el.tag}/{prop}"
+    owner = el if owner is None else owner
     child = el.find(prop)
     if child is None or not (child.text or "").strip():
         if default is None:
-            raise _err(el, f"has no <{prop}>")
+            raise _err(owner, f"has no <{what}>")
         return np.array(default, dtype=np.float64)
     text = re.sub(r"[(),~\[\]]", " ", child.text)
     try:
         vals = np.array([float(t) for t in text.split()], dtype=np.float64)
     except ValueError:
-        raise _err(el, f"<{prop}> is not numeric: {child.text.strip()!r}") from None
+        raise _err(owner, f"<{what}> is not numeric: {child.text.strip()!r}") from None
     if len(vals) != n or not np.all(np.isfinite(vals)):
-        raise _err(el, f"<{prop}> needs {n} finite number(s), got {child.text.strip()!r}")
+        raise _err(owner, f"<{what}> needs {n} finite number(s), got {child.text.strip()!r}")
     return vals
 
 
@@ -162,8 +166,8 @@ def geometry_appearance(element: etree._Element) -> tuple[np.ndarray | None, boo
     app = element.find("Appearance")
     if app is None:
         return None, True
-    color = _vector(app, "color", 3, [1.0, 1.0, 1.0])
-    opacity = _vector(app, "opacity", 1, [1.0])
+    color = _vector(app, "color", 3, [1.0, 1.0, 1.0], owner=element)
+    opacity = _vector(app, "opacity", 1, [1.0], owner=element)
     vis = app.find("visible")
     visible = vis is None or (vis.text or "true").strip().lower() not in ("false", "0")
     return np.clip(np.concatenate([color, opacity]), 0.0, 1.0), visible

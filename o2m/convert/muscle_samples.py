@@ -384,6 +384,10 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_le
     missing = [n for n in names if n not in elements]
     if missing:
         raise ModelFileError(f"{osim_path}: muscle(s) {', '.join(missing)} not found in the ForceSet")
+    for k, i in enumerate(supported):
+        if not np.isfinite(all_lengths[:, i]).any():
+            raise doc.error(elements[names[k]], f"has no finite length at any of the {len(all_lengths)} poses "
+                                                f"sampled (OpenSim gives inf or NaN: a path point too far out?)")
     bench = _Bench([elements[n] for n in names])
     lr, notes = _lengthranges(all_lengths, supported, names, n_failed)
     grid = lr[:, :1] + (lr[:, 1:] - lr[:, :1]) * np.linspace(0.0, 1.0, N_EVAL)[None, :]

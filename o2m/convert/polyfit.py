@@ -15,7 +15,17 @@ from numpy.typing import ArrayLike
 
 from o2m.osim.functions import FloatArray, Function
 
-__all__ = ["PolynomialFit", "fit_polynomial"]
+__all__ = ["FitError", "PolynomialFit", "fit_polynomial"]
+
+
+class FitError(ValueError):
+    """A fit gave a non-finite coefficient or error (its function's values are too large for
+    double precision, or not finite). ``coordinate``: the coordinate whose couplings were being
+    fitted, when the caller knows it."""
+
+    def __init__(self, message: str, coordinate: str | None = None):
+        super().__init__(message)
+        self.coordinate = coordinate
 
 
 @dataclass(frozen=True)
@@ -67,7 +77,7 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
     xs = _grid(fn, lo, hi, n)
     f = np.asarray(fn(xs), dtype=np.float64)
     if not np.all(np.isfinite(f)):
-        raise ValueError("function is not finite on [lo, hi]")
+        raise FitError(f"the function is not finite on [{lo:g}, {hi:g}]")
     # Scaled variable v = (x - x0) / s keeps the Vandermonde matrix well conditioned.
     s = max(abs(lo - x0), abs(hi - x0), 1e-300)
     V = np.vander((xs - x0) / s, degree + 1, increasing=True)
@@ -108,4 +118,7 @@ def fit_polynomial(fn: Function, lo: float, hi: float, x0: float, degree: int = 
                     best, best_err = cand, err
         except ValueError:
             pass
+    if not (np.all(np.isfinite(best)) and np.isfinite(best_err[0])):
+        raise FitError(f"the quartic fitted over [{lo:g}, {hi:g}] is not finite (coefficients {best.tolist()}; "
+                       f"the function reaches {float(np.max(np.abs(fc))):g})")
     return PolynomialFit(coef=best, max_error=best_err[0], rms_error=best_err[1], lo=lo, hi=hi, x0=x0)

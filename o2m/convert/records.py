@@ -1,16 +1,10 @@
-"""What a conversion records: each MuJoCo joint and how it is driven, each approximation with its
-measured error, and the model being built."""
+"""What a conversion records about its MuJoCo joints and approximations (the report lists them)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import mujoco
-
-__all__ = ["MIN_INERTIA", "Approximation", "BuildResult", "JointRecord"]
-
-#: The smallest principal inertia (kg m²) MuJoCo is given; a smaller one is raised to it (reported).
-MIN_INERTIA = 1e-12
 
 
 @dataclass
@@ -47,6 +41,8 @@ class JointRecord:
 
 @dataclass
 class BuildResult:
+    """The MuJoCo spec being built, with the records of its joints, approximations and notes."""
+
     spec: mujoco.MjSpec
     joints: list[JointRecord] = field(default_factory=list)
     approximations: list[Approximation] = field(default_factory=list)

@@ -64,6 +64,7 @@ class WrapGeoms:
         if self.geoms.get(wrap.name, "") is None:
             return None
         first_use = wrap.name not in self.geoms
+        self._check_size(wrap)
         x = self.ctx.in_world(wrap.body, wrap.frame)
         kind, size, extra_rot = wrap.kind, None, np.eye(3)
         if kind == "sphere":
@@ -104,6 +105,14 @@ class WrapGeoms:
         self.geoms[wrap.name] = name
         self.geom_frames[name] = (wrap.frame @ Transform(extra_rot), kind, float(size[0]))
         return name
+
+    def _check_size(self, wrap: WrapObject) -> None:
+        """Raise an error naming the wrap object when a size its MuJoCo geom takes is not positive."""
+        sizes = {"sphere": {"radius": wrap.radius}, "cylinder": {"radius": wrap.radius},
+                 "ellipsoid": {"dimensions": float(np.min(wrap.dimensions))}}.get(wrap.kind, {})
+        for prop, v in sizes.items():
+            if not v > 0:
+                raise self.b.doc.error(wrap.element, f"has <{prop}> {v:g}: a MuJoCo wrap geom needs a positive size")
 
     def place(self, path: Path, sites_ground: np.ndarray) -> list[tuple[int, WrapObject]]:
         """Choose, for each wrap of ``path``, the segment (within the wrap's OpenSim range) it acts

@@ -75,3 +75,30 @@ def restore_tree_numbers(xml: str, exact: Exact) -> str:
                 inertial.attrib.pop(attr, None)
             set_numbers(inertial, exact[("inertial", name)])
     return to_text(root)
+
+
+#: MJCF attributes that hold names or paths, never numbers (a body named "inf" is no number).
+_TEXT_ATTRIBUTES = frozenset({
+    "name", "model", "file", "meshdir", "texturedir", "assetdir", "class", "childclass", "content_type",
+    "joint", "joint1", "joint2", "body", "body1", "body2", "site", "site1", "site2", "tendon", "tendon1",
+    "tendon2", "geom", "geom1", "geom2", "mesh", "target", "sidesite", "material", "texture", "prefix",
+})
+
+
+def non_finite(xml: str) -> list[tuple[str, str | None, str, str]]:
+    """Every attribute of MJCF text ``xml`` that holds numbers, one of them NaN or infinite:
+    (tag, the element's name, attribute, its text)."""
+    out = []
+    for el in parse(xml).iter():
+        if not isinstance(el.tag, str):
+            continue
+        for attr, text in el.attrib.items():
+            if attr in _TEXT_ATTRIBUTES:
+                continue
+            try:
+                values = [float(tok) for tok in text.split()]
+            except ValueError:
+                continue  # a keyword ("true", "auto", ...), not numbers
+            if not all(np.isfinite(values)):
+                out.append((el.tag, el.get("name"), attr, text))
+    return out

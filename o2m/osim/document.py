@@ -20,6 +20,11 @@ from o2m.osim import runtime
 
 #: First document version of the OpenSim 4.x format.
 VERSION_4 = 40000
+#: The largest magnitude a number of the model may have (MuJoCo's mjMAXVAL: its simulation treats
+#: larger positions, speeds and accelerations as diverged); a length of 1e300 m would pass every
+#: other check and give a model that fails at its first step, a spline value of 1e300 a joint
+#: equality of infinite coefficients.
+MAX_MAGNITUDE = 1e10
 
 #: Default component names of the model's sets, used when a set has no name attribute.
 _SET_NAMES = {
@@ -34,6 +39,10 @@ _SET_NAMES = {
     "ComponentSet": "componentset",
     "WrapObjectSet": "wrapobjectset",
 }
+
+
+#: Elements whose named children are not components of the model: object groups and 3.x defaults.
+_NOT_COMPONENTS = frozenset({"groups", "defaults"})
 
 
 def _is_component(el: etree._Element) -> bool:
@@ -59,8 +68,9 @@ class OsimDocument:
     model: etree._Element
     version: int
     original: etree._ElementTree | None = None
-    _paths: dict[int, str] = field(default_factory=dict, repr=False)
+    _paths: dict[etree._Element, str] = field(default_factory=dict, repr=False)
     _by_path: dict[str, etree._Element] = field(default_factory=dict, repr=False)
+    _firsts: dict[etree._Element, etree._Element] = field(default_factory=dict, repr=False)
 
     @property
     def upgraded(self) -> bool:
@@ -88,35 +98,52 @@ class OsimDocument:
 
     # -- component paths ---------------------------------------------------------------
     def _index(self) -> None:
+        """Index every component by its path, walking the tree in document order without recursion
+        (a document may nest deeper than Python's recursion limit). The maps hold the elements
+        themselves, which keeps lxml's proxies (and so their identity) alive. A later component at
+        a path already taken is recorded in ``_firsts`` (but not in groups or defaults, which name
+        no component of the model)."""
         if self._by_path:
             return
-
-        def walk(el: etree._Element, path: str) -> None:
-            for child in el:
-                if not isinstance(child.tag, str):
-                    continue
-                if _is_component(child):
-                    cpath = f"{path.rstrip('/')}/{_component_name(child)}"
-                    self._paths[id(child)] = cpath
-                    self._by_path.setdefault(cpath, child)
-                    walk(child, cpath)
-                else:
-                    walk(child, path)
-
-        self._paths[id(self.model)] = "/"
+        self._paths[self.model] = "/"
         self._by_path["/"] = self.model
-        walk(self.model, "/")
+        stack: list[tuple[etree._Element, str, bool]] = [
+            (c, "/", False) for c in reversed(self.model) if isinstance(c.tag, str)]
+        while stack:  # popped in document order, each element before its children (as a recursion would)
+            el, path, quiet = stack.pop()
+            quiet = quiet or el.tag in _NOT_COMPONENTS
+            if _is_component(el):
+                path = f"{path.rstrip('/')}/{_component_name(el)}"
+                self._paths[el] = path
+                first = self._by_path.setdefault(path, el)
+                if first is not el and not quiet:
+                    self._firsts[el] = first
+            stack.extend((c, path, quiet) for c in reversed(el) if isinstance(c.tag, str))
+
+    def check_unique(self, el: etree._Element) -> None:
+        """Raise when component ``el`` shares its path (its name among its siblings) with an earlier one.
+
+        OpenSim renames such a component (``name_0``) when it loads the file; o2m refuses it
+        instead, naming both: MuJoCo needs unique names, and a socket or a muscle name that
+        means one of two components is ambiguous to the reader of the file.
+        """
+        self._index()
+        first = self._firsts.get(el)
+        if first is not None:
+            raise self.error(el, f"has the same path {self._paths[el]} as the <{first.tag}> at line "
+                                 f"{self.line_of(first)} (OpenSim would rename it '{el.get('name')}_0'): "
+                                 f"give it a name of its own")
 
     def path_of(self, el: etree._Element) -> str:
         """Absolute OpenSim component path of ``el`` (e.g. ``/jointset/elbow/r_humerus_offset``)."""
         self._index()
-        return self._paths[id(el)]
+        return self._paths[el]
 
     def owner_of(self, el: etree._Element) -> etree._Element:
         """Nearest enclosing component of ``el`` (for a socket element: the socket's owner)."""
         self._index()
         parent = el.getparent()
-        while parent is not None and id(parent) not in self._paths:
+        while parent is not None and parent not in self._paths:
             parent = parent.getparent()
         if parent is None:
             return self.model
@@ -132,9 +159,10 @@ class OsimDocument:
         self._index()
         target = (socket.text or "").strip()
         owner = self.owner_of(socket)
+        self.check_unique(owner)
         if not target:
             raise self.error(owner, f"has an empty <{socket.tag}>")
-        base = "/" if target.startswith("/") else self._paths[id(owner)]
+        base = "/" if target.startswith("/") else self._paths[owner]
         parts = [p for p in base.split("/") if p]
         for seg in target.split("/"):
             if seg in ("", "."):
@@ -146,13 +174,22 @@ class OsimDocument:
             parts.append(seg)
         found = self._by_path.get("/" + "/".join(parts))
         if found is not None:
+            self._check_target(found)
             return found
         name = target.rstrip("/").split("/")[-1]
         matches = [el for p, el in self._by_path.items() if p.rsplit("/", 1)[-1] == name]
         if len(matches) == 1:
+            self._check_target(matches[0])
             return matches[0]
         why = "no component has that name" if not matches else f"{len(matches)} components share that name"
         raise self.error(owner, f"<{socket.tag}> refers to '{target}', which cannot be resolved: {why}")
+
+
+    def _check_target(self, found: etree._Element) -> None:
+        """Raise when a socket's target path is shared by several components (naming the second)."""
+        second = next((el for el, first in self._firsts.items() if first is found), None)
+        if second is not None:
+            self.check_unique(second)
 
 
 #: OpenSim names some nested classes' tags ``Outer::Inner`` (``<HuntCrossleyForce::ContactParametersSet>``),

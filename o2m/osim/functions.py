@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from o2m.errors import UnsupportedElementError
+from o2m.osim.document import MAX_MAGNITUDE
 from o2m.osim.gcvspl import gcv_splder, gcvspl
 
 __all__ = [
@@ -617,9 +618,13 @@ def _numbers(element, name: str) -> FloatArray | None:
     if not text:
         return np.zeros(0)
     try:
-        return np.array([float(tok) for tok in text.replace(",", " ").split()], dtype=np.float64)
+        v = np.array([float(tok) for tok in text.replace(",", " ").split()], dtype=np.float64)
     except ValueError as exc:
         raise ValueError(f"<{name}> holds a value that is not a number: {text!r}") from exc
+    big = np.isfinite(v) & (np.abs(v) > MAX_MAGNITUDE)
+    if big.any():
+        raise ValueError(f"<{name}> holds {v[big][0]:g}, beyond {MAX_MAGNITUDE:g}, MuJoCo's largest value")
+    return v
 
 
 def _scalar(element, name: str, default: float) -> float:

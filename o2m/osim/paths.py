@@ -4,6 +4,7 @@ and the wrap objects a path uses. Units: metres, radians, in the OpenSim body fr
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,6 +21,18 @@ MUSCLE_TYPES = frozenset({
 })
 PATH_TYPES = MUSCLE_TYPES | {"PathActuator", "Ligament", "PathSpring"}
 WRAP_TYPES = frozenset({"WrapSphere", "WrapCylinder", "WrapEllipsoid", "WrapTorus"})
+#: A muscle's numbers o2m reads, and the interval each must lie in when given: (low, high, whether
+#: low itself is allowed). A negative max isometric force would become MuJoCo's "compute the force
+#: automatically", a NaN length or angle MuJoCo's defaults; OpenSim itself rejects a pennation angle
+#: outside [0, pi/2) and fails to equilibrate the others.
+MUSCLE_NUMBERS = {
+    "max_isometric_force": (0.0, math.inf, False),
+    "optimal_fiber_length": (0.0, math.inf, False),
+    "tendon_slack_length": (0.0, math.inf, True),
+    "pennation_angle_at_optimal": (0.0, math.pi / 2, True),
+    "activation_time_constant": (0.0, math.inf, False),
+    "deactivation_time_constant": (0.0, math.inf, False),
+}
 
 
 @dataclass
@@ -136,7 +149,7 @@ def read_wrap_objects(reader: SkeletonReader) -> dict[str, WrapObject]:
             pos = _floats(el.find("translation"), 3, doc, "translation") if el.find("translation") is not None \
                 else np.zeros(3)
             w = WrapObject(el.get("name"), el.tag[4:].lower(), body, x_body @ Transform(rot, pos), element=el)
-            w.quadrant = (el.findtext("quadrant") or "all").strip()
+            w.quadrant = _quadrant(doc, el)
             w.active = (el.findtext("active") or "true").strip().lower() != "false"
             for prop in ("radius", "length", "inner_radius", "outer_radius"):
                 if el.find(prop) is not None:
@@ -149,6 +162,19 @@ def read_wrap_objects(reader: SkeletonReader) -> dict[str, WrapObject]:
     return out
 
 
+#: OpenSim's wrap quadrants, each as o2m writes it ("all", or the sign and the axis).
+QUADRANTS = {"all": "all", "": "all", **{f"{a}{s}": f"{s}{a}" for a in "xyz" for s in "+-"},
+             **{f"{s}{a}": f"{s}{a}" for a in "xyz" for s in "+-"}, **{a: f"+{a}" for a in "xyz"}}
+
+
+def _quadrant(doc, el: etree._Element) -> str:
+    """The wrap object's quadrant ("all", "+x", "-y", ...); an error naming it for another word."""
+    text = (el.findtext("quadrant") or "all").strip()
+    if text.lower() not in QUADRANTS:
+        raise doc.error(el, f"has <quadrant> '{text}', not one of OpenSim's (all, +x, -x, +y, -y, +z, -z)")
+    return QUADRANTS[text.lower()]
+
+
 def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
     """The paths of every enabled path force in the ForceSet, in document order."""
     doc = reader.doc
@@ -156,6 +182,8 @@ def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
     for el in reader.set_objects("ForceSet"):
         if el.tag not in PATH_TYPES:
             continue
+        if el.tag in MUSCLE_TYPES:
+            check_muscle_numbers(reader, el)
         gp = el.find("GeometryPath")
         if gp is None:
             raise doc.error(el, "has no <GeometryPath>")
@@ -169,3 +197,16 @@ def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
             wraps.append(PathWrap((pw.findtext("wrap_object") or "").strip(), rng))
         paths.append(Path(el.get("name"), el.tag, points, wraps, el))
     return paths
+
+
+def check_muscle_numbers(reader: SkeletonReader, el: etree._Element) -> None:
+    """Raise an error naming muscle ``el`` when one of its :data:`MUSCLE_NUMBERS` is not a number in
+    its interval (negative or zero forces and lengths, NaN, a pennation angle of pi/2 or more)."""
+    for prop, (lo, hi, closed) in MUSCLE_NUMBERS.items():
+        child = el.find(prop)
+        if child is None:
+            continue
+        v = float(_floats(child, 1, reader.doc, prop)[0])
+        if not ((v >= lo if closed else v > lo) and v < hi):
+            where = f"[{lo:g}, {hi:g})" if closed else f"({lo:g}, {hi:g})"
+            raise reader.doc.error(el, f"has <{prop}> {v:g}, outside {where}")

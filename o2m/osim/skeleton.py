@@ -23,7 +23,7 @@ from lxml import etree
 
 from o2m.errors import UnsupportedElementError
 from o2m.osim import runtime
-from o2m.osim.document import OsimDocument
+from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.functions import Function, parse_function
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
@@ -42,6 +42,8 @@ JOINT_AXES: dict[str, list[tuple[str, tuple[float, float, float]]]] = {
     "PlanarJoint": [("rotation", _Z), ("translation", _X), ("translation", _Y)],
 }
 SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"}
+#: The six axes of a CustomJoint's SpatialTransform.
+TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
 
 
 @cache
@@ -64,6 +66,9 @@ def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: s
         raise doc.error(el.getparent(), f"<{what}> has {vals.size} numbers, expected {n}")
     if not np.all(np.isfinite(vals)):
         raise doc.error(el.getparent(), f"<{what}> holds a non-finite number")
+    if np.any(np.abs(vals) > MAX_MAGNITUDE):
+        raise doc.error(el.getparent(), f"<{what}> holds {vals[np.argmax(np.abs(vals))]:g}, beyond "
+                                        f"{MAX_MAGNITUDE:g}, MuJoCo's largest value")
     return vals
 
 
@@ -240,11 +245,15 @@ class SkeletonReader:
 
     # -- elements ----------------------------------------------------------------------
     def set_objects(self, set_tag: str) -> list[etree._Element]:
+        """The objects of the model's ``set_tag`` sets; one sharing its path with an earlier one (two
+        muscles of one name, say) raises an error naming both (:meth:`OsimDocument.check_unique`)."""
         objs: list[etree._Element] = []
         for s in self.model.findall(set_tag):
             holder = s.find("objects")
             if holder is not None:
                 objs.extend(c for c in holder if isinstance(c.tag, str))
+        for el in objs:
+            self.doc.check_unique(el)
         return objs
 
     def check_known(self, el: etree._Element) -> None:
@@ -320,11 +329,15 @@ class SkeletonReader:
             st = el.find("SpatialTransform")
             if st is None:
                 raise self.doc.error(el, "has no <SpatialTransform>")
+            seen: set[str] = set()
             for ta in st.findall("TransformAxis"):
                 axname = ta.get("name", "")
                 kind = "rotation" if axname.startswith("rotation") else "translation"
-                if not (axname.startswith("rotation") or axname.startswith("translation")):
+                if axname not in TRANSFORM_AXES:
                     raise self.doc.error(ta, "is not named rotation1-3 or translation1-3")
+                if axname in seen:
+                    raise self.doc.error(ta, f"is a second {axname} of this SpatialTransform")
+                seen.add(axname)
                 axis = _floats(ta.find("axis"), 3, self.doc, "axis")
                 norm = np.linalg.norm(axis)
                 if norm < 1e-12:

@@ -8,6 +8,7 @@ lists the mesh as skipped.
 
 from __future__ import annotations
 
+import copy
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ import opensim as osim
 import pytest
 from lxml import etree
 
+from o2m.convert import converter
 from o2m.convert.converter import convert
 from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
 from tests.helpers import convert_options
@@ -26,10 +28,11 @@ osim.Logger.setLevelString("error")
 SPLINE = ('<SimmSpline name="function"><x>-2 -1 0 0.5</x><y>0.001 0.004 -0.002 -0.005</y></SimmSpline>')
 
 
-def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False) -> str:
+def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False, muscle: bool = False) -> str:
     """ground -PinJoint j1-> b1 -CustomJoint knee-> b2, offsets on both sides; the knee's
     translation1 is a SimmSpline. ``mesh`` attaches a Mesh geometry file to b1;
-    ``ellipsoid`` makes j1 an EllipsoidJoint."""
+    ``ellipsoid`` makes j1 an EllipsoidJoint; ``muscle`` adds a Thelen2003Muscle m1 from b1 to
+    b2 that wraps a WrapCylinder cyl on b1."""
     m = osim.Model()
     m.setName(path.stem)
     b1 = osim.Body("b1", 2.0, osim.Vec3(0.05, -0.2, 0.01), osim.Inertia(0.03, 0.012, 0.028, 0.0015, -0.0008, 0.002))
@@ -60,6 +63,8 @@ def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False)
     knee.upd_coordinates(0).setRangeMax(0.5)
     if mesh:
         b1.attachGeometry(osim.Mesh(mesh))
+    if muscle:
+        _add_muscle(m, b1, b2)
     m.finalizeConnections()
     m.printToXML(str(path))
     tree = etree.parse(str(path))
@@ -68,6 +73,21 @@ def _build_base(path: Path, *, mesh: str | None = None, ellipsoid: bool = False)
     ta.append(etree.fromstring(SPLINE))
     tree.write(str(path), xml_declaration=True, encoding="UTF-8")
     return path.read_text()
+
+
+def _add_muscle(m, b1, b2) -> None:
+    """Thelen2003Muscle m1 (300 N) from b1 to b2, over WrapCylinder cyl (radius 0.02 m) on b1."""
+    mus = osim.Thelen2003Muscle("m1", 300.0, 0.1, 0.2, 0.1)
+    mus.addNewPathPoint("m1-origin", b1, osim.Vec3(0.02, -0.1, 0.03))
+    mus.addNewPathPoint("m1-insertion", b2, osim.Vec3(0.0, -0.1, 0.02))
+    m.addForce(mus)
+    cyl = osim.WrapCylinder()
+    cyl.setName("cyl")
+    cyl.set_radius(0.02)
+    cyl.set_length(0.1)
+    cyl.set_translation(osim.Vec3(0.04, -0.35, 0.02))
+    b1.addWrapObject(cyl)
+    mus.updGeometryPath().addPathWrap(cyl)
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +166,95 @@ def _case(name: str, base: str, tmp_path: Path) -> Case:
         text = base.replace(f"<inertia>{old}</inertia>", "<inertia>0.02 0.009 abc 0 0 0</inertia>")
         tag = '<Body name="b2">'
         return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "abc", "inertia"])
+    if name in MORE_CASES:
+        return MORE_CASES[name](base, tmp_path)
     raise ValueError(name)
+
+
+#: A mesh file (a tetrahedron, OBJ) the mesh cases write beside the model.
+OBJ = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+MESH_FILE = "<mesh_file>bone.obj</mesh_file>"
+
+
+def _mesh_case(tmp_path: Path, extra: str, expect: str) -> Case:
+    """The base model with b1's Mesh (whose file exists) given ``extra`` properties."""
+    text = _build_base(tmp_path / "mesh_src.osim", mesh="bone.obj").replace(MESH_FILE, extra + MESH_FILE)
+    (tmp_path / "bone.obj").write_text(OBJ)
+    tag = '<Mesh name="b1_geom_1">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", expect])
+
+
+def _muscle_case(tmp_path: Path, prop: str, value: str) -> Case:
+    """The base model with muscle m1 whose ``prop`` is ``value``."""
+    text = _build_base(tmp_path / "muscle_src.osim", muscle=True)
+    old = text_between(text, '<Thelen2003Muscle name="m1">', f"<{prop}>", f"</{prop}>")
+    text = text.replace(f"<{prop}>{old}</{prop}>", f"<{prop}>{value}</{prop}>", 1)
+    tag = '<Thelen2003Muscle name="m1">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", prop])
+
+
+def _zero_radius_wrap(base: str, tmp_path: Path) -> Case:
+    text = _build_base(tmp_path / "wrap_src.osim", muscle=True).replace("<radius>0.02</radius>", "<radius>0</radius>")
+    tag = '<WrapCylinder name="cyl">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "radius", "positive"])
+
+
+def _huge_spline(base: str, tmp_path: Path) -> Case:
+    text = base.replace("<y>0.001 0.004 -0.002 -0.005</y>", "<y>0.001 1e300 -0.002 -0.005</y>")
+    return Case(text, UnsupportedElementError,
+                ['<SimmSpline name="function">', f"line {line_of(text, '<SimmSpline')}", "1e+300"])
+
+
+def _huge_location(base: str, tmp_path: Path) -> Case:
+    text = _build_base(tmp_path / "far_src.osim", muscle=True)
+    old = text_between(text, '<PathPoint name="m1-insertion">', "<location>", "</location>")
+    text = text.replace(f"<location>{old}</location>", "<location>0 1e300 0</location>")
+    tag = '<PathPoint name="m1-insertion">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "1e+300"])
+
+
+def _massless(base: str, tmp_path: Path) -> Case:
+    """b1 and b2 massless: OpenSim refuses the model (a terminal massless body), o2m too."""
+    text = base
+    for body in ("b1", "b2"):
+        mass = text_between(text, f'<Body name="{body}">', "<mass>", "</mass>")
+        inertia = text_between(text, f'<Body name="{body}">', "<inertia>", "</inertia>")
+        text = text.replace(f"<mass>{mass}</mass>", "<mass>0</mass>", 1)
+        text = text.replace(f"<inertia>{inertia}</inertia>", "<inertia>0 0 0 0 0 0</inertia>", 1)
+    tag = '<Body name="b1">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "no mass", "OpenSim"])
+
+
+def _second_transform_axis(base: str, tmp_path: Path) -> Case:
+    """The knee's rotation1 TransformAxis twice (a crash inside the builder once)."""
+    root = etree.fromstring(base.encode())
+    (ta,) = root.xpath("//CustomJoint[@name='knee']/SpatialTransform/TransformAxis[@name='rotation1']")
+    ta.addnext(copy.deepcopy(ta))
+    text = '<?xml version="1.0" encoding="UTF-8" ?>\n' + etree.tostring(root, encoding="unicode")
+    second = etree.fromstring(text.encode()).xpath("//TransformAxis[@name='rotation1']")[1].sourceline
+    return Case(text, UnsupportedElementError, ['<TransformAxis name="rotation1">', f"line {second}", "second"])
+
+
+def _quadrant_word(base: str, tmp_path: Path) -> Case:
+    text = _build_base(tmp_path / "quadrant_src.osim", muscle=True).replace("<quadrant>all</quadrant>",
+                                                                            "<quadrant>up</quadrant>")
+    tag = '<WrapCylinder name="cyl">'
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "quadrant", "'up'"])
+
+
+MORE_CASES = {
+    "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
+    "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
+    "muscle-negative-force": lambda base, tmp: _muscle_case(tmp, "max_isometric_force", "-1000"),
+    "muscle-nan-fiber-length": lambda base, tmp: _muscle_case(tmp, "optimal_fiber_length", "NaN"),
+    "muscle-nan-pennation": lambda base, tmp: _muscle_case(tmp, "pennation_angle_at_optimal", "nan"),
+    "wrap-zero-radius": _zero_radius_wrap,
+    "spline-huge-value": _huge_spline,
+    "path-point-far-out": _huge_location,
+    "massless-bodies": _massless,
+    "second-transform-axis": _second_transform_axis,
+    "wrap-quadrant-word": _quadrant_word,
+}
 
 
 def text_between(text: str, after: str, start: str, end: str) -> str:
@@ -156,7 +264,7 @@ def text_between(text: str, after: str, start: str, end: str) -> str:
 
 CASES = ["missing-file", "truncated", "empty", "not-opensim", "unknown-joint", "ellipsoid-joint",
          "scapulothoracic-joint", "unknown-function", "bad-joint-socket", "bad-frame-socket", "mass-text",
-         "inertia-text"]
+         "inertia-text", *MORE_CASES]
 
 
 def _write(case: Case, tmp_path: Path, name: str) -> Path:
@@ -243,3 +351,70 @@ def test_missing_mesh_is_not_an_error(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "cli" / "meshy.xml").exists()
+
+
+FAST = {"fit_mechanics": False, "fit_wraps": False}
+
+
+def test_zero_width_range_converts(base, tmp_path):
+    """A coordinate whose range has no width (knee in [0.1, 0.1]) converts, its joint the coordinate's."""
+    path = tmp_path / "still.osim"
+    path.write_text(base.replace("<range>-2 0.5</range>", "<range>0.1 0.1</range>"))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    assert any(j.coordinate == "knee" and j.name == "knee" for j in conv.report.joints)
+
+
+def test_massless_leaf_that_opensim_accepts_converts_with_a_warning(base, tmp_path):
+    """b2 massless (OpenSim loads the model): converted, the report's warnings name b2."""
+    mass = text_between(base, '<Body name="b2">', "<mass>", "</mass>")
+    path = tmp_path / "light.osim"
+    path.write_text(base.replace(f"<mass>{mass}</mass>", "<mass>0</mass>"))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    assert any(w.startswith("Body b2:") and "no mass" in w for w in conv.report.warnings), conv.report.warnings
+
+
+def _unreadable_mesh(path: Path, how: str, monkeypatch) -> None:
+    if how == "corrupt":
+        (path.parent / "bone.vtp").write_text("<VTKFile garbage")
+    else:  # a file the user may not read (root reads every file: refuse it as the OS would)
+        (path.parent / "bone.vtp").write_text("<VTKFile/>")
+        real = Path.read_bytes
+
+        def read_bytes(self):
+            if self.name == "bone.vtp":
+                raise PermissionError(13, "Permission denied", str(self))
+            return real(self)
+
+        monkeypatch.setattr(Path, "read_bytes", read_bytes)
+
+
+@pytest.mark.parametrize("how", ["corrupt", "no-permission"])
+def test_unreadable_mesh_is_skipped(how, tmp_path, monkeypatch):
+    """A mesh file that exists but cannot be read is skipped, as a missing one: the report says why."""
+    path = tmp_path / "meshy.osim"
+    _build_base(path, mesh="bone.vtp")
+    _unreadable_mesh(path, how, monkeypatch)
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    (skipped,) = [s for s in conv.report.skipped if s.element == "Mesh"]
+    assert "bone.vtp" in skipped.reason and "cannot be read" in skipped.reason
+    assert ("Permission denied" if how == "no-permission" else "malformed XML") in skipped.reason
+    assert any("cannot be read" in w for w in conv.report.warnings)
+    assert not list((tmp_path / "out" / "meshes").glob("*.stl"))
+
+
+def test_a_non_finite_number_in_the_output_is_an_error(tmp_path):
+    """The last check before writing: a NaN in the MJCF (which MuJoCo would load) stops the conversion."""
+    xml = '<mujoco><equality><joint name="e" joint1="a" polycoef="nan inf 0 0 0"/></equality></mujoco>'
+    with pytest.raises(O2MError, match=r'<joint name="e"> polycoef="nan inf 0 0 0"'):
+        converter._check_finite(xml, tmp_path / "model.osim")
+    converter._check_finite(xml.replace("nan inf", "0 1"), tmp_path / "model.osim")
+
+
+def test_a_model_far_out_of_scale_converts_with_a_warning(base, tmp_path):
+    """A number far out of scale but below the 1e10 o2m refuses (b1's centre of mass 1e8 m out)
+    gives a model that diverges at its first step: the report says so."""
+    com = text_between(base, '<Body name="b1">', "<mass_center>", "</mass_center>")
+    path = tmp_path / "far.osim"
+    path.write_text(base.replace(f"<mass_center>{com}</mass_center>", "<mass_center>0 -1e8 0</mass_center>", 1))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    assert any("diverges in MuJoCo" in w for w in conv.report.warnings), conv.report.warnings

@@ -27,7 +27,7 @@ from o2m.convert.contact_fit import SLIDE_SPEED, HuntCrossley, Surface, fit_line
 from o2m.convert.converter import ConvertOptions, convert
 from o2m.osim import runtime
 from o2m.validate.contact import BallModel, compare_drop, compare_slide, write_ball_model
-from tests.helpers import mirror, require_mirror
+from tests.helpers import model_file
 
 FAST = ConvertOptions(quick=True, fit_mechanics=False, fit_wraps=False)
 #: The ball of the drop and slide tests: corpus-like parameters (ToyLanding uses viscous friction too).
@@ -178,8 +178,7 @@ def test_pairs_and_skips(tmp_path):
 # -- corpus ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["ToyLanding/ToyLandingModel.osim", "WalkerModel/WalkerModel.osim"])
 def test_corpus_models_step(tmp_path, name):
-    require_mirror()
-    src = mirror() / "opensim-models" / "Models" / name
+    src = model_file(f"opensim-models/Models/{name}")
     conv = convert(src, tmp_path, FAST)
     assert not any(s.element.startswith("Contact") or s.element == "HuntCrossleyForce" for s in conv.report.skipped)
     m = mujoco.MjModel.from_xml_path(str(conv.xml))

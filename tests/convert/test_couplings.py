@@ -10,6 +10,8 @@ OpenSim 4.6; chained equalities are resolved in order, positions and speeds alik
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import mujoco
 import numpy as np
 import pytest
@@ -17,7 +19,7 @@ import pytest
 from o2m.convert import couplings
 from o2m.convert.builder import COUPLING_TARGET
 from o2m.convert.couplings import COUPLING_AMPLITUDE, fit_coupling, fit_couplings
-from o2m.convert.polyfit import fit_polynomial
+from o2m.convert.polyfit import FitError, fit_polynomial
 from o2m.mj.posing import joint_equality_plan, pose_mujoco
 from o2m.mj.simulate import initial_state, state_layout
 from o2m.osim.functions import SimmSpline
@@ -298,3 +300,16 @@ def test_chained_equalities_resolve_positions_and_speeds(tmp_path):
         name = m.joint(i).name
         if name.startswith("knee_translation1"):
             assert qvel[m.jnt_dofadr[i]] == pytest.approx(fd[m.jnt_qposadr[i]], rel=1e-6, abs=1e-12), name
+
+
+def test_fit_couplings_refuses_a_fit_that_is_not_finite():
+    """A function with one huge value gives FitError, never joint equalities of NaN or inf; so does
+    a fit whose coefficients are not finite."""
+    huge = SimmSpline(np.array([-2.0, -1.0, 0.0, 0.5]), np.array([0.001, 1e300, -0.002, -0.005]))
+    with pytest.raises(FitError, match="not finite"):
+        fit_couplings([huge], -2.0, 0.5, 0.0, targets=[1e-4], uses=[[0]], hosts=[0])
+    spline = SimmSpline(np.array([-2.0, -1.0, 0.0, 0.5]), np.array([0.001, 0.004, -0.002, -0.005]))
+    fit = fit_couplings([spline], -2.0, 0.5, 0.0, targets=[1e-4], uses=[[0]], hosts=[0])
+    couplings._check_finite(fit)
+    with pytest.raises(FitError, match="not finite"):
+        couplings._check_finite(replace(fit, inners=fit.inners * np.nan))

@@ -25,6 +25,7 @@ from o2m.convert.muscles import (
     error_summary,
     fit_muscles,
 )
+from o2m.errors import O2MError
 from o2m.mj.muscle import mujoco_muscle_force
 from tests.helpers import model_file
 
@@ -293,3 +294,18 @@ def test_tug_of_war(tug):
         # Thelen muscles with 0.015/0.05 s activation/deactivation time constants
         np.testing.assert_allclose(p.timeconst, [0.015, 0.05])
         assert p.cost < p.start_cost
+
+
+def test_a_muscle_without_finite_lengths_is_an_error_naming_it(tug, tmp_path):
+    """A path point at 1e300 m: OpenSim's lengths are inf at every pose, and the fit (which once
+    stopped on numpy's "zero-size array") raises an O2MError naming the muscle and its line."""
+    text = tug.read_text()
+    old = "<location>0 0 -0.050000000000000003</location>"
+    assert old in text
+    path = tmp_path / "far.osim"
+    path.write_text(text.replace(old, "<location>0 0 1e300</location>", 1))
+    with pytest.raises(O2MError) as info, np.errstate(all="ignore"):
+        fit_muscles(path, n_poses=10, seed=0, processes=1)
+    tag = '<Thelen2003Muscle name="muscle1">'
+    msg, line = str(info.value), text[:text.index(tag)].count("\n") + 1
+    assert str(path) in msg and tag in msg and f"line {line}" in msg and "no finite length" in msg

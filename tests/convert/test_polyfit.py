@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from o2m.convert.polyfit import fit_polynomial
+from o2m.convert.polyfit import FitError, fit_polynomial
 from o2m.osim.functions import Constant, PolynomialFunction, SimmSpline
 
 
@@ -60,3 +60,12 @@ def test_fit_polynomial_exact_at_x0_keeps_the_reference_point():
     assert pinned(np.array([0.3]))[0] == pytest.approx(float(spline(0.3)), abs=1e-15)
     assert pinned.max_error >= free.max_error - 1e-15
     assert pinned.max_error < 0.01
+
+
+def test_fit_polynomial_refuses_a_fit_that_is_not_finite():
+    """Values near the largest double overflow the fit (its coefficients once reached MJCF as
+    polycoef="nan inf -inf ..."): FitError, as for a function that is not finite on the range."""
+    with np.errstate(all="ignore"), pytest.raises(FitError, match="quartic .* is not finite"):
+        fit_polynomial(lambda x: 1.5e308 * np.sin(3 * x), -2.0, 0.5, 0.0)
+    with np.errstate(all="ignore"), pytest.raises(FitError, match="function is not finite"):
+        fit_polynomial(lambda x: 1.0 / x, -1.0, 1.0, 0.5)

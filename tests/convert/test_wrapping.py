@@ -32,8 +32,9 @@ from o2m.convert.wrapfit import fit_paths
 from o2m.convert.wraps import PathGeom
 from o2m.mj.posing import pose_mujoco
 from o2m.validate.jumps import sweep_jumps
+from o2m.validate.kinematics import compare_kinematics
 from o2m.validate.muscles import compare_muscles
-from tests.helpers import convert_options
+from tests.helpers import convert_options, model_file
 
 osim.Logger.setLevelString("error")
 
@@ -197,3 +198,27 @@ def test_fit_keeps_an_exact_start(pendulum):
     assert f.after["objective"] <= f.before["objective"] < 1e-6
     if not f.accepted:
         assert f.after == f.before and f.check_after == f.check_before
+
+
+def test_conditional_point_with_a_zero_width_range_is_left_out(tmp_path):
+    """A ConditionalPathPoint active for q in [0, 0] (as WristModel's, whose fit once stopped on
+    "function is not finite"): OpenSim's path has it at q = 0 only, so it is left out, with a note."""
+    path = tmp_path / "zero.osim"
+    _pendulum(path, "conditional")
+    text = path.read_text()
+    path.write_text(text.replace(f"<range>-1 {QSTAR!r}</range>", "<range>0 0</range>"))
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    assert any("'P2' left out" in n and "no width" in n for n in conv.report.notes), conv.report.notes
+    qs, l_os, l_mj = _sweep(path, conv.xml)
+    off = np.abs(qs) > 1e-9
+    np.testing.assert_allclose(l_mj[off], l_os[off], atol=1e-9)  # straight, as OpenSim away from q = 0
+
+
+def test_wrist_model_converts_and_matches_opensim(tmp_path):
+    """WristModel: eight ConditionalPathPoints with zero-width ranges; every body where OpenSim has it."""
+    wrist = model_file("opensim-models/Models/WristModel/wrist.osim")
+    conv = convert(wrist, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    assert sum("no width" in n for n in conv.report.notes) == 8
+    assert any(w.startswith("Body ") and "no mass" in w for w in conv.report.warnings)  # all massless
+    rep = compare_kinematics(wrist, conv.xml, n_poses=10)
+    assert not rep.missing_bodies and rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9

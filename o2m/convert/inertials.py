@@ -1,33 +1,29 @@
-"""Armature of the joints a coupling adds beside a coordinate's joint: extra joints and complements.
+"""Mass and armature of the MuJoCo bodies and joints :class:`~o2m.convert.builder.MjcfBuilder` makes.
 
-An extra joint (:mod:`o2m.convert.coupling_plan`) or a complement joint (a coordinate reaching
-its axis through a function, :class:`~o2m.convert.coordinates.CoordinateAxis`) shares its axis
-with a main joint, so without armature the mass matrix would be singular. Each gets a multiple of
-its main joint's own inertia at the reference pose (kg m² for hinges, kg for slides), and the
-report records what that adds to the coordinate's inertia at most.
+A body's inertial is OpenSim's (kg, m, kg m², in the body frame), raised where MuJoCo needs more
+(a moving massless body, a non-positive or non-physical inertia; each recorded as an
+approximation); the extra joints of couplings and complement joints get armatures scaled by the
+inertia of the joints they share an axis with (kg or kg m²). Each function takes the builder.
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from o2m.convert.coupling_plan import extra_armature
-from o2m.convert.records import MIN_INERTIA, Approximation
+from o2m.convert.records import Approximation
+from o2m.osim.skeleton import Joint
 
-if TYPE_CHECKING:
-    from o2m.convert.builder import MjcfBuilder
-
-__all__ = ["COMPLEMENT_ARMATURE", "main_inertias", "set_complement_armature", "set_extra_armature"]
-
+#: Mass (kg) and principal inertia (kg m²) given to massless moving bodies, which MuJoCo rejects.
+MIN_MASS = 1e-8
+MIN_INERTIA = 1e-12
 #: A complement joint's armature, as a fraction of its coordinate joint's own inertia: enough to
 #: keep the mass matrix regular, small beside what the coordinate moves.
 COMPLEMENT_ARMATURE = 0.01
 
 
-def main_inertias(builder: MjcfBuilder, joints: list[str]) -> dict[str, float]:
+def main_inertias(builder, joints: list[str]) -> dict[str, float]:
     """Each of ``joints``' own inertia (kg or kg m², the diagonal of the mass matrix) at the
     reference pose in the skeleton with plain quartic couplings; {} if it does not compile."""
     plain = type(builder)(builder.skel, plan_couplings=False)
@@ -43,7 +39,8 @@ def main_inertias(builder: MjcfBuilder, joints: list[str]) -> dict[str, float]:
     dofs = {j: int(m.jnt_dofadr[m.joint(j).id]) for j in joints}
     return {j: float(inertia[k, k]) for j, k in dofs.items()}
 
-def set_complement_armature(builder: MjcfBuilder) -> None:
+
+def set_complement_armature(builder) -> None:
     """Give each complement joint :data:`COMPLEMENT_ARMATURE` times its coordinate joint's own
     inertia at the reference pose as armature (the two share an axis, so without it the mass
     matrix is singular) and record what that adds to the coordinate's inertia at most
@@ -70,7 +67,8 @@ def set_complement_armature(builder: MjcfBuilder) -> None:
             "Coordinate", coord, f"armature of complement joint '{name}' (shares the coordinate joint's axis)",
             float(armature * np.max(slope**2)), unit, f"armature {armature:.3g} {unit}"))
 
-def set_extra_armature(builder: MjcfBuilder) -> None:
+
+def set_extra_armature(builder) -> None:
     """Give every extra joint of a coupled axis its armature
     (:func:`~o2m.convert.coupling_plan.extra_armature`: a multiple of the main joint's own
     inertia at the reference pose, the skeleton compiled as built so far) and add to each
@@ -104,3 +102,42 @@ def set_extra_armature(builder: MjcfBuilder) -> None:
             coord_unit = "kg m^2" if builder.coord_joint[base][1].kind == "rotation" else "kg"
             arms = ", ".join(f"{armature[n]:.3g}" for n in recs)
             a.detail += f"; armature {arms} {unit}, adding at most {added[main]:.3g} {coord_unit} to '{base}'"
+
+
+def set_inertial(builder, body: mujoco.MjsBody, joint: Joint) -> None:
+    """Give MuJoCo body ``body`` the inertial of ``joint``'s child, raised where MuJoCo needs more."""
+    b = builder.skel.bodies[joint.child]
+    mass, inertia = b.mass, b.inertia.copy()
+    if mass == 0.0:  # OpenSim ignores the inertia of a massless body
+        inertia[:] = 0.0
+    moving = not all(builder.is_fixed(ax) for ax in joint.rotations + joint.translations)
+    if moving and mass < MIN_MASS:
+        builder.result.approximations.append(Approximation(
+            "Body", b.name, f"massless moving body given {MIN_MASS:g} kg (MuJoCo needs mass)", MIN_MASS, "kg"))
+        mass = MIN_MASS
+    eig = np.linalg.eigvalsh(inertia)
+    if eig.min() < MIN_INERTIA:  # MuJoCo needs positive inertia, also on welded bodies
+        inertia = inertia + np.eye(3) * (MIN_INERTIA - min(0.0, eig.min()))
+        builder.result.approximations.append(Approximation(
+            "Body", b.name, f"inertia raised by {MIN_INERTIA:g} kg m² (MuJoCo needs positive inertia)",
+            MIN_INERTIA, "kg m^2"))
+    inertia = physical_inertia(builder, b.name, inertia)
+    body.explicitinertial = True
+    body.mass = mass
+    body.ipos = b.com
+    body.fullinertia = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+    builder.exact[("inertial", b.name)] = {"pos": b.com, "mass": mass, "fullinertia": np.array(body.fullinertia)}
+
+
+def physical_inertia(builder, name: str, inertia: np.ndarray) -> np.ndarray:
+    """``inertia`` (3, 3), with its largest principal moment lowered to the sum of the other two
+    when it breaks the triangle inequality A + B >= C, which MuJoCo enforces."""
+    eig, vec = np.linalg.eigh(inertia)
+    if eig[0] + eig[1] >= eig[2] * (1 - 1e-12):
+        return inertia
+    fixed = eig.copy()
+    fixed[2] = (eig[0] + eig[1]) * (1 - 1e-5)  # inside by more than the MJCF's printed precision
+    builder.result.approximations.append(Approximation(
+        "Body", name, "largest principal inertia lowered to the sum of the other two (A + B >= C)",
+        float(eig[2] - fixed[2]), "kg m^2", f"from {eig[2]:.4g} to {fixed[2]:.4g}"))
+    return vec @ np.diag(fixed) @ vec.T
