@@ -21,6 +21,7 @@ import numpy as np
 
 from o2m.convert import forces
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.constraints import add_constraints
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.massless import check_massless
 from o2m.convert.muscles import fit_muscles
@@ -98,6 +99,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     skel = read_skeleton(doc)
     builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics)
     result = builder.build()
+    add_constraints(builder)
     massless = check_massless(skel, builder, osim)
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)

@@ -170,6 +170,22 @@ class Coupler:
 
 
 @dataclass
+class PointOnLine:
+    """PointOnLineConstraint: a point of the follower body stays on a line of the line body.
+
+    Points (m) and the unit direction are in the bodies' own frames (OpenSim's, Y-up for ground).
+    """
+
+    name: str
+    line_body: str
+    line_point: np.ndarray  # (3,)
+    direction: np.ndarray  # (3,) unit
+    follower_body: str
+    follower_point: np.ndarray  # (3,)
+    element: etree._Element
+
+
+@dataclass
 class Marker:
     name: str
     body: str
@@ -200,6 +216,7 @@ class Skeleton:
     geometry: list[Geometry]
     skipped: list[Skipped] = field(default_factory=list)
     document: OsimDocument | None = None
+    point_on_lines: list[PointOnLine] = field(default_factory=list)
 
 
 class SkeletonReader:
@@ -242,6 +259,22 @@ class SkeletonReader:
         if sock is None:
             raise self.doc.error(owner, f"has no <{socket}>")
         return self.frame(self.doc.resolve(sock))
+
+    def point_on_line(self, el: etree._Element) -> PointOnLine:
+        """A PointOnLineConstraint, its points and direction moved into its sockets' bodies."""
+        line_body, x_line, _ = self.socket_frame(el, "socket_line_body")
+        follower, x_follow, _ = self.socket_frame(el, "socket_follower_body")
+        direction = _floats(el.find("line_direction_vec"), 3, self.doc, "line_direction_vec")
+        norm = float(np.linalg.norm(direction))
+        if not np.isfinite(norm) or norm < 1e-12:
+            raise self.doc.error(el, "has a line direction of zero length")
+        on_line = el.find("point_on_line")
+        on_follower = el.find("point_on_follower")
+        line_point = _floats(on_line, 3, self.doc, "point_on_line") if on_line is not None else np.zeros(3)
+        follower_point = _floats(on_follower, 3, self.doc, "point_on_follower") if on_follower is not None \
+            else np.zeros(3)
+        return PointOnLine(el.get("name", ""), line_body, x_line.apply(line_point), x_line.rot @ (direction / norm),
+                           follower, x_follow.apply(follower_point), el)
 
     # -- elements ----------------------------------------------------------------------
     def set_objects(self, set_tag: str) -> list[etree._Element]:
@@ -378,6 +411,7 @@ class SkeletonReader:
         coords: dict[str, Coordinate] = {}
         joints = [self.joint(el, coords) for el in self.set_objects("JointSet")]
         couplers: list[Coupler] = []
+        point_on_lines: list[PointOnLine] = []
         for el in self.set_objects("ConstraintSet"):
             self.check_known(el)
             enforced = _bool(el.find("isEnforced"), True) and not _bool(el.find("isDisabled"), False)
@@ -385,7 +419,11 @@ class SkeletonReader:
                 if not enforced:
                     skipped.append(Skipped(el.tag, el.get("name", ""), "constraint is not enforced"))
                     continue
-                raise doc.error(el, "is a constraint o2m cannot convert (only CoordinateCouplerConstraint)")
+                if el.tag == "PointOnLineConstraint":
+                    point_on_lines.append(self.point_on_line(el))
+                    continue
+                raise doc.error(el, "is a constraint o2m cannot convert (only CoordinateCouplerConstraint and "
+                                "PointOnLineConstraint)")
             if not enforced:
                 skipped.append(Skipped(el.tag, el.get("name", ""), "constraint is not enforced"))
                 continue
@@ -427,7 +465,7 @@ class SkeletonReader:
         grav = self.model.find("gravity")
         gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
         return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,
-                        markers, geometry, skipped, doc)
+                        markers, geometry, skipped, doc, point_on_lines)
 
 
 def _skip_reason(set_tag: str) -> str:
