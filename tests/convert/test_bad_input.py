@@ -449,3 +449,19 @@ def test_a_negative_principal_inertia_is_raised_by_what_it_takes(base, tmp_path)
     conv = convert(path, tmp_path / "out", convert_options(**FAST))
     raised = [a for a in conv.report.approximations if a.name == "b2" and "raised" in a.what]
     assert len(raised) == 1 and raised[0].max_error == pytest.approx(1.7697e-4, rel=1e-3), raised
+
+
+@pytest.mark.parametrize("prop, value, expect", [("min_control", "-0.01", "makes OpenSim refuse the model"),
+                                                 ("optimal_fiber_length", "1e-300", "cannot load")])
+def test_muscle_fit_refusals_name_the_muscle(prop, value, expect, tmp_path):
+    """OpenSim refusing the model in the muscle fit (once 'OpenSim could not load the model' without
+    element or line), and a muscle fitted to parameters MuJoCo cannot load (an optimal fiber length
+    of 1e-300 m: vmax 2e-299; the written model once did not load): errors naming the muscle."""
+    case = _muscle_case(tmp_path, prop, value)
+    path = _write(case, tmp_path, "fit")
+    out = tmp_path / "out"
+    with pytest.raises(UnsupportedElementError) as info:
+        convert(path, out, convert_options(fit_wraps=False))
+    msg = str(info.value)
+    assert all(s in msg for s in case.expect) and expect in msg and msg.startswith(str(path)), msg
+    _assert_no_output(tmp_path, out)
