@@ -211,7 +211,8 @@ def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses
     len_ends = pm.lengths(ends)
     # coordinates each muscle spans: its length changes when the coordinate goes to a range end
     nm = len(pm.muscles)
-    delta = np.abs(len_ends[1:] - len_ends[0][None, :]).reshape(nq, 2, nm).max(axis=1) if nq else np.zeros((0, nm))
+    with np.errstate(invalid="ignore"):  # inf - inf where a length is not finite (measure_muscles names the muscle)
+        delta = np.abs(len_ends[1:] - len_ends[0][None, :]).reshape(nq, 2, nm).max(axis=1) if nq else np.zeros((0, nm))
     spans = {i: tuple(int(k) for k in np.flatnonzero(delta[:, i] > 1e-7)) for i in supported}
     corner_rng = np.random.default_rng([seed, 1])
     corner_poses = [_corner_poses(pm.bounds, pm.defaults, s, corner_rng) for s in sorted(set(spans.values()))]
