@@ -10,10 +10,13 @@ fits, unless the change is in a muscle: then with the muscle fit), and the outco
 * ``converted``: the MJCF loads in MuJoCo and steps :data:`STEPS` steps (no controls) with
   finite positions and no MuJoCo warning of a diverged position, velocity or acceleration;
 * ``refused``: an :class:`~o2m.errors.O2MError`, with nothing left in the output folder;
+* ``massless, reported``: converted, and the simulation diverges, as the report warns, because a
+  body that moves carries no mass (a massless body OpenSim accepts: o2m converts such a
+  kinematic model, as WristModel, and says it will not simulate);
 * ``crashed`` (any other exception), ``unstable`` (converted, but the simulation diverged) or
-  ``left files`` (refused, but files were left behind): each a bug; ``unstable, reported`` when
-  the conversion's report warns that the model diverges (a number far out of scale but below
-  the 1e10 o2m refuses: not one of the values here).
+  ``left files`` (refused, but files were left behind): each a bug; so is ``unstable, reported``
+  (the report warns that the model diverges, for no massless body: a number far out of scale
+  but below the 1e10 o2m refuses, which none of the values here is).
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ KINDS = {"number": 0.5, "word": 0.1, "remove": 0.15, "duplicate": 0.15, "rename"
 #: Steps a converted model must simulate (MuJoCo's default 2 ms step, zero controls).
 STEPS = 100
 #: The outcomes that are not bugs.
-GOOD = ("converted", "refused")
+GOOD = ("converted", "refused", "massless, reported")
 _BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                  mujoco.mjtWarning.mjWARN_BADQACC)
 
@@ -149,15 +152,24 @@ def mutations(sources: dict[str, str], n: int, seed: int = 0) -> list[Mutation]:
     return out
 
 
+#: Analytic shapes given to the two-body model's b2.
+_SHAPES = ('<attached_geometry><Sphere name="ball"><socket_frame>..</socket_frame><radius>0.05</radius></Sphere>'
+           '<Brick name="box"><socket_frame>..</socket_frame><half_lengths>0.02 0.03 0.04</half_lengths>'
+           '<Appearance><color>0.2 0.4 0.6</color><opacity>0.5</opacity></Appearance></Brick></attached_geometry>')
+
+
 def sources(folder: Path) -> dict[str, str]:
-    """The documents mutated: Tug_of_War (from the model registry) and the two-body model of
-    ``tests/convert/test_bad_input.py`` with its muscle over a wrap cylinder (written in ``folder``)."""
+    """The documents mutated: Tug_of_War (from the model registry; its meshes are missing) and the
+    two-body model of ``tests/convert/test_bad_input.py`` with its muscle over a wrap cylinder, a
+    mesh on b1 (an OBJ written in ``folder``, named by its absolute path) and a sphere and a box on b2."""
     from o2m import models
-    from tests.convert.test_bad_input import _build_base
+    from tests.convert.test_bad_input import OBJ, _build_base
 
     folder.mkdir(parents=True, exist_ok=True)
+    (folder / "bone.obj").write_text(OBJ)
     tug = models.fetch("opensim-models/Models/Tug_of_War/Tug_of_War.osim").read_text()
-    return {"tug": tug, "two-body": _build_base(folder / "two_body.osim", muscle=True)}
+    two = _build_base(folder / "two_body.osim", muscle=True, mesh=str((folder / "bone.obj").resolve()))
+    return {"tug": tug, "two-body": two.replace('<Body name="b2">', '<Body name="b2">' + _SHAPES, 1)}
 
 
 def simulates(xml: Path) -> str:
@@ -198,7 +210,9 @@ def run(mutation: Mutation, folder: Path) -> Outcome:
     if not why:
         return Outcome(mutation, "converted")
     warned = any("diverges in MuJoCo" in w for w in conv.report.warnings)
-    return Outcome(mutation, "unstable, reported" if warned else "unstable", why)
+    massless = any("carries no mass" in w for w in conv.report.warnings)
+    kind = ("massless, reported" if massless else "unstable, reported") if warned else "unstable"
+    return Outcome(mutation, kind, why)
 
 
 def describe(o: Outcome) -> str:

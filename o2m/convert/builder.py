@@ -399,6 +399,11 @@ class MjcfBuilder:
         mj = self.spec.joint(name)
         mj.range = list(coord.range)
         clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
+        if clamped and not coord.range[0] < coord.range[1]:  # MuJoCo's limits need two ends
+            clamped = False
+            self.result.notes.append(f"coordinate '{coord.name}' is clamped to a range of no width "
+                                     f"{list(coord.range)}: its MuJoCo joint is left unlimited (MuJoCo's "
+                                     f"limits need two ends)")
         mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE
         if self.drivers[coord.name].base != coord.name:
             self.couple(rec, self.drivers[coord.name], joint_ref, coord.element, high_order=True)

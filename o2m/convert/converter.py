@@ -107,7 +107,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     vias = add_length_vias(builder, paths, wraps, str(osim)) if options.length_vias else []
     tendons = add_paths(builder, paths, wraps, path_forces=options.path_forces)
     force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
-    muscle_skipped = _fit_mechanics(result, osim) if options.fit_mechanics and any(
+    muscle_skipped = _fit_mechanics(result, osim, paths, doc) if options.fit_mechanics and any(
         p.owner_type in MUSCLE_TYPES for p in paths) else []
     search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs]
     out_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -171,13 +171,25 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     return Conversion(out_dir / f"{stem}.xml", report)
 
 
-def _fit_mechanics(result, osim: Path) -> list[Skipped]:
-    """Fit every muscle actuator to OpenSim's muscle forces; record each fit's error."""
+#: The muscle properties an error about a fit out of scale quotes.
+_MUSCLE_SCALE = ("max_isometric_force", "optimal_fiber_length", "tendon_slack_length")
+
+
+def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
+    """Fit every muscle actuator to OpenSim's muscle forces; record each fit's error. A fit MuJoCo
+    would refuse is an error naming the muscle (of ``paths``) and its line."""
     fits = fit_muscles(osim)
+    elements = {p.owner: p.element for p in paths}
     for act in result.spec.actuators:
         p = fits.get(act.name)
         if p is None:
             continue
+        why = p.unloadable()
+        if why:
+            el = elements[p.name]
+            props = ", ".join(f"{k} {el.findtext(k).strip()}" for k in _MUSCLE_SCALE if el.find(k) is not None)
+            raise doc.error(el, f"fits a MuJoCo muscle MuJoCo cannot load ({why}): its properties are out of "
+                                f"scale ({props})")
         p.apply_to(act)
         result.approximations.append(Approximation(
             p.type, p.name, "MuJoCo muscle force-length fitted to OpenSim's tendon force (rigid tendon)",

@@ -27,6 +27,7 @@ import numpy as np
 from lxml import etree
 
 from o2m.errors import UnsupportedElementError
+from o2m.osim.document import MAX_MAGNITUDE
 
 __all__ = [
     "GeomSpec",
@@ -96,6 +97,10 @@ _SKIPPED = {
     "Mesh": "Mesh is not analytic; convert it with read_mesh/write_stl",
 }
 
+#: The smallest size (m) of a MuJoCo primitive o2m writes (MuJoCo's mjMINVAL: its XML writer leaves
+#: out a smaller size as if it were the default 0, and the written model does not load).
+MIN_SIZE = 1e-15
+
 #: OpenSim 4.6 default property values, used when the element omits them.
 _DEFAULTS = {
     ("Sphere", "radius"): [1.0],
@@ -148,6 +153,9 @@ def _vector(el: etree._Element, prop: str, n: int, default: list[float] | None =
         raise _err(owner, f"<{what}> is not numeric: {child.text.strip()!r}") from None
     if len(vals) != n or not np.all(np.isfinite(vals)):
         raise _err(owner, f"<{what}> needs {n} finite number(s), got {child.text.strip()!r}")
+    if np.any(np.abs(vals) > MAX_MAGNITUDE):
+        raise _err(owner, f"<{what}> holds {vals[np.argmax(np.abs(vals))]:g}, beyond {MAX_MAGNITUDE:g}, "
+                          f"MuJoCo's largest value")
     return vals
 
 
@@ -221,6 +229,9 @@ def analytic_geom(element: etree._Element, skipped: list[str] | None = None) -> 
     used = size[:1] if gtype == "sphere" else size[:2] if gtype == "cylinder" else size
     if np.any(used <= 0):
         skip(f"non-positive size {used.tolist()}")
+        return None
+    if np.any(used < MIN_SIZE):
+        skip(f"size {used.tolist()} below {MIN_SIZE:g} m, which MuJoCo's XML writer leaves out (as 0)")
         return None
     rgba, visible = geometry_appearance(element)
     frame = element.findtext("socket_frame")

@@ -117,10 +117,11 @@ def set_inertial(builder, body: mujoco.MjsBody, joint: Joint) -> None:
         mass = MIN_MASS
     eig = np.linalg.eigvalsh(inertia)
     if eig.min() < MIN_INERTIA:  # MuJoCo needs positive inertia, also on welded bodies
-        inertia = inertia + np.eye(3) * (MIN_INERTIA - min(0.0, eig.min()))
+        raised = MIN_INERTIA - min(0.0, eig.min())
+        inertia = inertia + np.eye(3) * raised
         builder.result.approximations.append(Approximation(
-            "Body", b.name, f"inertia raised by {MIN_INERTIA:g} kg m² (MuJoCo needs positive inertia)",
-            MIN_INERTIA, "kg m^2"))
+            "Body", b.name, f"inertia raised by {raised:g} kg m² (MuJoCo needs positive inertia)",
+            raised, "kg m^2"))
     inertia = physical_inertia(builder, b.name, inertia)
     body.explicitinertial = True
     body.mass = mass
@@ -136,7 +137,9 @@ def physical_inertia(builder, name: str, inertia: np.ndarray) -> np.ndarray:
     if eig[0] + eig[1] >= eig[2] * (1 - 1e-12):
         return inertia
     fixed = eig.copy()
-    fixed[2] = (eig[0] + eig[1]) * (1 - 1e-5)  # inside by more than the MJCF's printed precision
+    # inside by more than the MJCF's printed precision, and never below the middle moment (with the
+    # smallest about 0, lowering the largest below the middle one would break the inequality again)
+    fixed[2] = max(eig[1], (eig[0] + eig[1]) * (1 - 1e-5))
     builder.result.approximations.append(Approximation(
         "Body", name, "largest principal inertia lowered to the sum of the other two (A + B >= C)",
         float(eig[2] - fixed[2]), "kg m^2", f"from {eig[2]:.4g} to {fixed[2]:.4g}"))

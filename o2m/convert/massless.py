@@ -12,13 +12,13 @@ naming the body and its line; what it accepts converts, with a warning per body 
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.inertials import MIN_MASS
 from o2m.errors import ModelFileError
 from o2m.osim import runtime
+from o2m.osim.document import opensim_reason
 from o2m.osim.skeleton import Body, Skeleton
 
 
@@ -61,10 +61,10 @@ def check_massless(skel: Skeleton, builder: MjcfBuilder, osim: Path) -> list[str
         return []
     try:
         runtime.load_model(osim)
-    except ModelFileError as exc:  # OpenSim's reason follows its "in '<function>': "
-        named = re.search(r"/bodyset/([^ ).]+)", str(exc))
-        body = next((b for b in bodies if named and b.name == named.group(1)), bodies[0])
-        reason = str(exc).split("': ", 1)[-1].strip()
+    except ModelFileError as exc:
+        component, reason = opensim_reason(exc)
+        named = component.rsplit("/", 1)[-1] if component and component.startswith("/bodyset/") else None
+        body = next((b for b in bodies if b.name == named), bodies[0])
         raise skel.document.error(body.element, f"moves and carries no mass (none of its own, none below it), "
                                                 f"which MuJoCo cannot simulate; OpenSim 4.6 refuses the model "
                                                 f"too: {reason}") from None

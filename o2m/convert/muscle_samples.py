@@ -23,7 +23,7 @@ from lxml import etree
 from o2m.convert.muscle_types import _activation_times, _force_velocity, _prop
 from o2m.errors import ModelFileError
 from o2m.osim import runtime
-from o2m.osim.document import load_document
+from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
 
 __all__ = ["FV_FIT_RANGE", "N_EVAL", "MuscleSample", "measure_muscles", "sample_lengths"]
 
@@ -81,7 +81,7 @@ class _PoseModel:
             self.model = osim.Model(osim_path)
             self.state = self.model.initSystem()
         except Exception as exc:  # OpenSim raises generic RuntimeErrors
-            raise ModelFileError(f"{osim_path}: OpenSim could not load the model: {exc}") from exc
+            raise opensim_refusal(osim_path, exc) from None
         s = self.state
         cs = self.model.getCoordinateSet()
         coords = [cs.get(i) for i in range(cs.getSize())]
@@ -211,7 +211,8 @@ def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses
     len_ends = pm.lengths(ends)
     # coordinates each muscle spans: its length changes when the coordinate goes to a range end
     nm = len(pm.muscles)
-    delta = np.abs(len_ends[1:] - len_ends[0][None, :]).reshape(nq, 2, nm).max(axis=1) if nq else np.zeros((0, nm))
+    with np.errstate(invalid="ignore"):  # inf - inf where a length is not finite (measure_muscles names the muscle)
+        delta = np.abs(len_ends[1:] - len_ends[0][None, :]).reshape(nq, 2, nm).max(axis=1) if nq else np.zeros((0, nm))
     spans = {i: tuple(int(k) for k in np.flatnonzero(delta[:, i] > 1e-7)) for i in supported}
     corner_rng = np.random.default_rng([seed, 1])
     corner_poses = [_corner_poses(pm.bounds, pm.defaults, s, corner_rng) for s in sorted(set(spans.values()))]
@@ -303,10 +304,21 @@ def _bench_document(elements: list[etree._Element]) -> str:
     )
 
 
+def _bench_refusal(doc: OsimDocument, elements: list[etree._Element], exc: Exception) -> Exception:
+    """The error for OpenSim's refusal of the bench: naming the muscle (of ``elements``, read from
+    ``doc``) that OpenSim names, its line and OpenSim's reason."""
+    component, reason = opensim_reason(exc)
+    name = component.split("/")[2] if component and component.startswith("/forceset/") else None
+    el = next((e for e in elements if name is not None and e.get("name") == name), None)
+    if el is None:
+        return ModelFileError(f"{doc.path}: OpenSim rejects the model's muscles: {reason}")
+    return doc.error(el, f"makes OpenSim refuse the muscle: {reason}")
+
+
 class _Bench:
     """OpenSim's static tendon force of each muscle as a function of its MTU length."""
 
-    def __init__(self, elements: list[etree._Element]):
+    def __init__(self, doc: OsimDocument, elements: list[etree._Element]):
         osim = runtime.opensim()
         with tempfile.TemporaryDirectory(prefix="o2m-bench-") as tmp:
             path = Path(tmp) / "bench.osim"
@@ -315,7 +327,7 @@ class _Bench:
                 self.model = osim.Model(str(path))
                 self.state = self.model.initSystem()
             except Exception as exc:  # a muscle's own properties are invalid
-                raise ModelFileError(f"OpenSim rejects the model's muscles: {exc}") from exc
+                raise _bench_refusal(doc, elements, exc) from None
         cs = self.model.getCoordinateSet()
         self.coords = [cs.get(f"length_{i}") for i in range(len(elements))]
         ms = self.model.getMuscles()
@@ -388,7 +400,7 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_le
         if not np.isfinite(all_lengths[:, i]).any():
             raise doc.error(elements[names[k]], f"has no finite length at any of the {len(all_lengths)} poses "
                                                 f"sampled (OpenSim gives inf or NaN: a path point too far out?)")
-    bench = _Bench([elements[n] for n in names])
+    bench = _Bench(doc, [elements[n] for n in names])
     lr, notes = _lengthranges(all_lengths, supported, names, n_failed)
     grid = lr[:, :1] + (lr[:, 1:] - lr[:, :1]) * np.linspace(0.0, 1.0, N_EVAL)[None, :]
     f_act, a_act = bench.forces(grid, 1.0)

@@ -140,6 +140,23 @@ class MuscleParams:
             "fpmax": fmt(self.fpmax), "fvmax": fmt(self.fvmax), "lengthrange": fmt(self.lengthrange),
         }
 
+    def unloadable(self) -> str:
+        """What MuJoCo would refuse of these parameters ("" when nothing): every number finite, the
+        time constants, force, vmax, fpmax and fvmax at least mjMINVAL (MuJoCo: "positive ...
+        required"), lmin < 1 < lmax and range[0] < range[1]. Properties far out of scale (an optimal
+        fiber length of 1e-300 m) fit to such parameters."""
+        numbers = {"timeconst": np.min(self.timeconst), "force": self.force, "vmax": self.vmax,
+                   "fpmax": self.fpmax, "fvmax": self.fvmax}
+        if not all(np.all(np.isfinite(v)) for v in [*numbers.values(), self.range, self.lmin, self.lmax,
+                                                     self.lengthrange]):
+            return "a number that is not finite"
+        small = [f"{k} {float(v):g}" for k, v in numbers.items() if v < MJMINVAL]
+        if small:
+            return f"{', '.join(small)} (MuJoCo needs at least {MJMINVAL:g})"
+        if not (self.lmin < 1 < self.lmax and self.range[0] < self.range[1]):
+            return f"lmin {self.lmin:g}, lmax {self.lmax:g}, range {self.range.tolist()}"
+        return ""
+
     def apply_to(self, actuator) -> None:
         """Make a ``mujoco.MjsActuator`` this muscle (``set_to_muscle`` plus ``lengthrange``)."""
         actuator.set_to_muscle(

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from o2m.errors import ModelFileError, UnsupportedElementError
+from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
 from o2m.osim import runtime
 
 #: First document version of the OpenSim 4.x format.
@@ -134,6 +134,19 @@ class OsimDocument:
                                  f"{self.line_of(first)} (OpenSim would rename it '{el.get('name')}_0'): "
                                  f"give it a name of its own")
 
+    def component(self, path: str) -> etree._Element | None:
+        """The component at absolute ``path``, or else the nearest enclosing one the document has
+        (OpenSim names components the document may not have, such as a muscle's default path);
+        None when not even the first part of the path is one."""
+        self._index()
+        parts = [p for p in path.split("/") if p]
+        while parts:
+            el = self._by_path.get("/" + "/".join(parts))
+            if el is not None:
+                return el
+            parts.pop()
+        return None
+
     def path_of(self, el: etree._Element) -> str:
         """Absolute OpenSim component path of ``el`` (e.g. ``/jointset/elbow/r_humerus_offset``)."""
         self._index()
@@ -227,6 +240,29 @@ def _upgrade_with_opensim(path: Path) -> etree._ElementTree:
         out = Path(tmp) / path.name
         model.printToXML(str(out))
         return parse_xml(out)
+
+
+def opensim_reason(exc: Exception) -> tuple[str | None, str]:
+    """(the component path OpenSim's error ``exc`` names, or None; its reason, on one line)."""
+    text = str(exc).strip()
+    reason = text.split("': ", 1)[-1].split("\n\tIn Component")[0].replace("\n", " ").strip()
+    m = re.search(r"In Component '(/[^']*)'", text) or re.search(r"(/(?:bodyset|jointset|forceset)/[^ ').,]+)", text)
+    return (m.group(1).rstrip(".") if m else None), reason
+
+
+def opensim_refusal(path: str | Path, exc: Exception) -> Exception:
+    """The error for OpenSim's refusal (``exc``) to load the file at ``path``: naming the component
+    OpenSim names ("In Component '/forceset/m1'"), its line and OpenSim's reason when the file's
+    document has that component; else a ModelFileError naming the file."""
+    component, reason = opensim_reason(exc)
+    try:
+        doc = load_document(path)
+        el = doc.component(component) if component else None
+    except O2MError:
+        el = None
+    if el is None:
+        return ModelFileError(f"{path}: OpenSim could not load the model: {str(exc).strip()}")
+    return doc.error(el, f"makes OpenSim refuse the model: {reason}")
 
 
 def load_document(path: str | Path) -> OsimDocument:

@@ -175,6 +175,26 @@ def _quadrant(doc, el: etree._Element) -> str:
     return QUADRANTS[text.lower()]
 
 
+#: OpenSim's wrapping methods (a PathWrap's <method>, any case).
+WRAP_METHODS = ("hybrid", "midpoint", "axial")
+
+
+def _path_wrap(doc, pw: etree._Element) -> PathWrap:
+    """A PathWrap element: its wrap object and point range; an error naming it for a range that is not
+    two whole numbers or a method OpenSim does not know (OpenSim refuses the model then)."""
+    method = (pw.findtext("method") or "hybrid").strip()
+    if method.lower() not in WRAP_METHODS:
+        raise doc.error(pw, f"has <method> '{method}', not one of OpenSim's ({', '.join(WRAP_METHODS)})")
+    text = (pw.findtext("range") or "-1 -1").strip()
+    try:
+        rng = tuple(int(v) for v in text.split())
+    except ValueError:
+        rng = ()
+    if len(rng) != 2:
+        raise doc.error(pw, f"has <range> '{text}', not two whole numbers (point indices, -1 for all)")
+    return PathWrap((pw.findtext("wrap_object") or "").strip(), rng)
+
+
 def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
     """The paths of every enabled path force in the ForceSet, in document order."""
     doc = reader.doc
@@ -193,8 +213,7 @@ def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
             raise doc.error(el, f"has a path of {len(points)} point(s); a path needs two")
         wraps = []
         for pw in gp.iterfind("PathWrapSet/objects/PathWrap"):
-            rng = tuple(int(v) for v in (pw.findtext("range") or "-1 -1").split())
-            wraps.append(PathWrap((pw.findtext("wrap_object") or "").strip(), rng))
+            wraps.append(_path_wrap(doc, pw))
         paths.append(Path(el.get("name"), el.tag, points, wraps, el))
     return paths
 

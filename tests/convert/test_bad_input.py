@@ -9,6 +9,7 @@ lists the mesh as skipped.
 from __future__ import annotations
 
 import copy
+import re
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -242,6 +243,18 @@ def _quadrant_word(base: str, tmp_path: Path) -> Case:
     return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", "quadrant", "'up'"])
 
 
+def _path_wrap_case(tmp_path: Path, prop: str, value: str) -> Case:
+    """The muscle model with its PathWrap's ``prop`` (method or range) made ``value``."""
+    text = _build_base(tmp_path / "pathwrap_src.osim", muscle=True)
+    start = text.index("<PathWrap ")
+    end = text.index(">", start) + 1
+    tag = text[start:end]
+    body = text[end:text.index("</PathWrap>", start)]
+    new = re.sub(rf"<{prop}>.*?</{prop}>", "", body) + f"<{prop}>{value}</{prop}>"
+    text = text[:end] + new + text[end + len(body):]
+    return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", prop])
+
+
 MORE_CASES = {
     "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
     "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
@@ -254,6 +267,8 @@ MORE_CASES = {
     "massless-bodies": _massless,
     "second-transform-axis": _second_transform_axis,
     "wrap-quadrant-word": _quadrant_word,
+    "path-wrap-method": lambda base, tmp: _path_wrap_case(tmp, "method", "o2m"),
+    "path-wrap-range": lambda base, tmp: _path_wrap_case(tmp, "range", "1 o2m"),
 }
 
 
@@ -356,12 +371,16 @@ def test_missing_mesh_is_not_an_error(tmp_path):
 FAST = {"fit_mechanics": False, "fit_wraps": False}
 
 
-def test_zero_width_range_converts(base, tmp_path):
-    """A coordinate whose range has no width (knee in [0.1, 0.1]) converts, its joint the coordinate's."""
+@pytest.mark.parametrize("clamped", [False, True])
+def test_zero_width_range_converts(clamped, base, tmp_path):
+    """A coordinate whose range has no width (knee in [0.1, 0.1]) converts, its joint the coordinate's;
+    clamped, its joint is unlimited (MuJoCo's limits need two ends; once a compile error), with a note."""
     path = tmp_path / "still.osim"
-    path.write_text(base.replace("<range>-2 0.5</range>", "<range>0.1 0.1</range>"))
+    rng = "<range>0.1 0.1</range>" + ("<clamped>true</clamped>" if clamped else "")
+    path.write_text(base.replace("<range>-2 0.5</range>", rng))
     conv = convert(path, tmp_path / "out", convert_options(**FAST))
     assert any(j.coordinate == "knee" and j.name == "knee" for j in conv.report.joints)
+    assert any("'knee' is clamped to a range of no width" in n for n in conv.report.notes) == clamped
 
 
 def test_massless_leaf_that_opensim_accepts_converts_with_a_warning(base, tmp_path):
@@ -418,3 +437,31 @@ def test_a_model_far_out_of_scale_converts_with_a_warning(base, tmp_path):
     path.write_text(base.replace(f"<mass_center>{com}</mass_center>", "<mass_center>0 -1e8 0</mass_center>", 1))
     conv = convert(path, tmp_path / "out", convert_options(**FAST))
     assert any("diverges in MuJoCo" in w for w in conv.report.warnings), conv.report.warnings
+
+
+def test_a_negative_principal_inertia_is_raised_by_what_it_takes(base, tmp_path):
+    """b2's inertia with a negative principal moment (OpenSim loads it): converted, the report giving
+    the raise it took (not the 1e-12 it once said) and MuJoCo's triangle inequality kept (the
+    largest moment never below the middle one: once a compile error)."""
+    old = text_between(base, '<Body name="b2">', "<inertia>", "</inertia>")
+    path = tmp_path / "odd.osim"
+    path.write_text(base.replace(f"<inertia>{old}</inertia>", "<inertia>0 0.009 0.021 -0.001 0.0012 0</inertia>"))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    raised = [a for a in conv.report.approximations if a.name == "b2" and "raised" in a.what]
+    assert len(raised) == 1 and raised[0].max_error == pytest.approx(1.7697e-4, rel=1e-3), raised
+
+
+@pytest.mark.parametrize("prop, value, expect", [("min_control", "-0.01", "makes OpenSim refuse the model"),
+                                                 ("optimal_fiber_length", "1e-300", "cannot load")])
+def test_muscle_fit_refusals_name_the_muscle(prop, value, expect, tmp_path):
+    """OpenSim refusing the model in the muscle fit (once 'OpenSim could not load the model' without
+    element or line), and a muscle fitted to parameters MuJoCo cannot load (an optimal fiber length
+    of 1e-300 m: vmax 2e-299; the written model once did not load): errors naming the muscle."""
+    case = _muscle_case(tmp_path, prop, value)
+    path = _write(case, tmp_path, "fit")
+    out = tmp_path / "out"
+    with pytest.raises(UnsupportedElementError) as info:
+        convert(path, out, convert_options(fit_wraps=False))
+    msg = str(info.value)
+    assert all(s in msg for s in case.expect) and expect in msg and msg.startswith(str(path)), msg
+    _assert_no_output(tmp_path, out)

