@@ -40,6 +40,19 @@ def main_inertias(builder, joints: list[str]) -> dict[str, float]:
     return {j: float(inertia[k, k]) for j, k in dofs.items()}
 
 
+def _mass_matrix(spec: mujoco.MjSpec) -> tuple[mujoco.MjModel, np.ndarray] | None:
+    """The spec compiled and its mass matrix (nv, nv) at the reference pose; None if it does not compile."""
+    try:
+        m = spec.compile()
+    except ValueError:
+        return None
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    inertia = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, inertia)
+    return m, inertia
+
+
 def set_complement_armature(builder) -> None:
     """Give each complement joint :data:`COMPLEMENT_ARMATURE` times its coordinate joint's own
     inertia at the reference pose as armature (the two share an axis, so without it the mass
@@ -47,14 +60,10 @@ def set_complement_armature(builder) -> None:
     (armature times the largest (f'(q) - 1)² over the coordinate's range)."""
     if not builder._complements:
         return
-    try:
-        m = builder.spec.compile()
-    except ValueError:
+    compiled = _mass_matrix(builder.spec)
+    if compiled is None:
         return  # the conversion's own compile reports what is wrong
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    inertia = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, inertia)
+    m, inertia = compiled
     for coord, (name, ax) in builder._complements.items():
         dof = int(m.jnt_dofadr[m.joint(coord).id])
         armature = COMPLEMENT_ARMATURE * max(float(inertia[dof, dof] - m.dof_armature[dof]), MIN_INERTIA)
@@ -77,14 +86,10 @@ def set_extra_armature(builder) -> None:
     mains = builder._extras_of
     if not mains:
         return
-    try:
-        m = builder.spec.compile()
-    except ValueError:
+    compiled = _mass_matrix(builder.spec)
+    if compiled is None:
         return  # the conversion's own compile reports what is wrong
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    inertia = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, inertia)
+    m, inertia = compiled
     own = {}
     for main in mains:
         dof = int(m.jnt_dofadr[m.joint(main).id])

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.records import unique_name
 from o2m.osim.paths import Path, PathPoint
 from o2m.transforms import OSIM_TO_MJ, Transform
 
@@ -32,11 +33,7 @@ class PathContext:
 
     def unique(self, name: str) -> str:
         """``name``, or ``name_<k>`` when it is taken; taken from now on."""
-        out, k = name, 1
-        while out in self.names:
-            out, k = f"{name}_{k}", k + 1
-        self.names.add(out)
-        return out
+        return unique_name(name, self.names)
 
     @staticmethod
     def in_world(body: str, x: Transform) -> Transform:

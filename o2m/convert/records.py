@@ -47,3 +47,12 @@ class BuildResult:
     joints: list[JointRecord] = field(default_factory=list)
     approximations: list[Approximation] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+
+
+def unique_name(name: str, taken: set[str]) -> str:
+    """``name``, or ``name_1``, ``name_2``, ... when taken; added to ``taken``."""
+    out, k = name, 1
+    while out in taken:
+        out, k = f"{name}_{k}", k + 1
+    taken.add(out)
+    return out

@@ -11,7 +11,7 @@ from pathlib import Path
 import mujoco
 
 from o2m.convert import geometry
-from o2m.convert.records import BuildResult
+from o2m.convert.records import BuildResult, unique_name
 from o2m.errors import ModelFileError, UnsupportedElementError
 from o2m.osim.meshes import read_mesh, write_stl
 from o2m.osim.skeleton import Geometry, Skeleton, Skipped
@@ -50,11 +50,7 @@ class _GeometryAdder:
 
     def unique(self, name: str) -> str:
         """``name``, or ``name_1``, ``name_2``, ... when taken."""
-        out, k = name, 1
-        while out in self.used_names:
-            out, k = f"{name}_{k}", k + 1
-        self.used_names.add(out)
-        return out
+        return unique_name(name, self.used_names)
 
     def add(self, g: Geometry) -> None:
         """Add geometry ``g`` on its body (a mesh, an analytic shape, or a skip with the reason)."""
