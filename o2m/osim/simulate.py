@@ -119,6 +119,7 @@ class ModelOutline:
         defaults: each coordinate's default value, rad or m.
         locked: names of the coordinates locked by default (they do not move).
         rotational: names of the rotational coordinates (the others are translational, m).
+        ranges: each coordinate's range (min, max), rad or m.
     """
 
     muscles: tuple[str, ...]
@@ -126,6 +127,7 @@ class ModelOutline:
     defaults: dict[str, float]
     locked: frozenset[str]
     rotational: frozenset[str]
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
 def model_outline(osim_path: str | os.PathLike[str]) -> ModelOutline:
@@ -148,7 +150,8 @@ def model_outline(osim_path: str | os.PathLike[str]) -> ModelOutline:
     return ModelOutline(tuple(muscles.get(i).getName() for i in range(muscles.getSize())),
                         tuple(c.getName() for c in objs), {c.getName(): float(c.getDefaultValue()) for c in objs},
                         frozenset(c.getName() for c in objs if c.getDefaultLocked()),
-                        frozenset(c.getName() for c in objs if c.getMotionType() == rotational))
+                        frozenset(c.getName() for c in objs if c.getMotionType() == rotational),
+                        {c.getName(): (float(c.getRangeMin()), float(c.getRangeMax())) for c in objs})
 
 
 def read_initial_state(path: str | os.PathLike[str]) -> dict[str, float]:

@@ -111,6 +111,8 @@ class DynamicsReport:
         mujoco_diverged: per set, MuJoCo reset the simulation (the trajectory is meaningless).
         unmatched_muscles: OpenSim muscles with no MuJoCo actuator of the same name (not driven in MuJoCo).
         opensim_seconds: wall-clock seconds of each OpenSim run.
+        ranges: each compared coordinate's OpenSim range (min, max), shape (C, 2), rad or m; a
+            model without limit forces can leave it, and the converted model is fitted inside it.
     """
 
     name: str
@@ -125,6 +127,7 @@ class DynamicsReport:
     mujoco_diverged: np.ndarray
     unmatched_muscles: list[str] = field(default_factory=list)
     opensim_seconds: list[float] = field(default_factory=list)
+    ranges: np.ndarray | None = None
 
     @property
     def error(self) -> np.ndarray:
@@ -152,6 +155,17 @@ class DynamicsReport:
         """Largest absolute error per coordinate, shape (C,)."""
         return _nan_reduce(np.nanmax, self.error.reshape(-1, len(self.coordinates)))
 
+    def outside_range(self) -> np.ndarray:
+        """Fraction of OpenSim's samples outside the coordinate's range, per coordinate, shape (C,)."""
+        if self.ranges is None:
+            return np.full(len(self.coordinates), np.nan)
+        q = self.opensim.reshape(-1, len(self.coordinates))
+        reached = np.isfinite(q).all(axis=1)
+        if not reached.any():
+            return np.full(len(self.coordinates), np.nan)
+        q = q[reached]
+        return np.mean((q < self.ranges[:, 0]) | (q > self.ranges[:, 1]), axis=0)
+
     def mean_rotational_error(self) -> float:
         """Mean absolute error over the rotational coordinates, rad (NaN when nothing compares)."""
         rot = self.error[..., self.rotational]
@@ -168,27 +182,32 @@ class DynamicsReport:
             note = " (MuJoCo diverged)" if self.mujoco_diverged[s] else ""
             why = f": {self.reasons[s]}" if self.reasons[s] else ""
             secs = f", {self.opensim_seconds[s]:.1f} s wall" if s < len(self.opensim_seconds) else ""
-            lines.append(f"  {self.labels[s]}: OpenSim {self.status[s]} to t={t_end:.3g} s{secs}{why}{note}")
+            rot = self.error[s][:, self.rotational]
+            err = f", mean abs {np.nanmean(rot):.4f} rad" if np.isfinite(rot).any() else ""
+            lines.append(f"  {self.labels[s]}: OpenSim {self.status[s]} to t={t_end:.3g} s{secs}{err}{why}{note}")
         if self.unmatched_muscles:
             lines.append(f"  not driven in MuJoCo (no actuator of that name): {', '.join(self.unmatched_muscles)}")
         w = max([len("coordinate")] + [len(c) for c in self.coordinates])
-        lines.append(f"  {'coordinate':<{w}}  unit  {'mean abs':>9}  {'max':>9}  {'final':>9}")
+        lines.append(f"  {'coordinate':<{w}}  unit  {'mean abs':>9}  {'max':>9}  {'final':>9}  OpenSim outside range")
         mean, peak, final = self.mean_error(), self.max_error(), _nan_reduce(np.nanmean, self.final_error())
+        outside = self.outside_range()
         for j, c in enumerate(self.coordinates):
             unit = "rad" if self.rotational[j] else "m"
-            lines.append(f"  {c:<{w}}  {unit:<4}  {mean[j]:9.4f}  {peak[j]:9.4f}  {final[j]:9.4f}")
+            lines.append(f"  {c:<{w}}  {unit:<4}  {mean[j]:9.4f}  {peak[j]:9.4f}  {final[j]:9.4f}  "
+                         f"{100 * outside[j]:5.1f}% of samples")
         lines.append(f"  mean abs error over rotational coordinates: {self.mean_rotational_error():.4f} rad")
         return "\n".join(lines)
 
     def plot(self, path: str | os.PathLike[str], *, max_sets: int = 5, dpi: int = 80) -> Path:
-        """OpenSim (solid) against MuJoCo (dashed) per coordinate, one colour per set, as an image."""
+        """OpenSim (solid) against MuJoCo (dashed) per coordinate, one colour per set, the
+        coordinate's range dotted, as an image (a PNG gets a 64-colour palette)."""
         import matplotlib
 
         matplotlib.use("Agg", force=False)
         import matplotlib.pyplot as plt
 
         n = len(self.coordinates)
-        cols = min(n, 4) or 1
+        cols = max(1, min(n, 3 if n <= 6 else 4))
         rows = max(1, -(-n // cols))
         fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.3 * rows), squeeze=False, sharex=True)
         colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -200,16 +219,30 @@ class DynamicsReport:
                 colour = colours[s % len(colours)]
                 ax.plot(self.times, self.opensim[s, :, j], "-", color=colour, lw=1.2)
                 ax.plot(self.times, self.mujoco[s, :, j], "--", color=colour, lw=1.2)
+            low, high = ax.get_ylim()
+            for bound in self.ranges[j] if self.ranges is not None else ():
+                if low < bound < high:
+                    ax.axhline(bound, color="0.5", lw=0.8, ls=":")
             unit = "rad" if self.rotational[j] else "m"
             ax.set_title(f"{self.coordinates[j]} ({unit})", fontsize=8)
             ax.tick_params(labelsize=7)
         for ax in axes[-1]:
             ax.set_xlabel("time (s)", fontsize=7)
-        fig.suptitle(f"{self.name}: OpenSim (solid) vs MuJoCo (dashed)", fontsize=9)
+        fig.suptitle(f"{self.name}: OpenSim (solid) vs MuJoCo (dashed), one colour per set; dotted: the coordinate's "
+                     "range", fontsize=9)
         fig.tight_layout()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=dpi)
+        if path.suffix.lower() == ".png":  # a 64-colour palette: a fifth of the size, for docs
+            from io import BytesIO
+
+            from PIL import Image
+
+            buffer = BytesIO()
+            fig.savefig(buffer, dpi=dpi, format="png")
+            Image.open(buffer).convert("RGB").quantize(64).save(path, optimize=True)
+        else:
+            fig.savefig(path, dpi=dpi)
         plt.close(fig)
         return path
 
@@ -295,7 +328,8 @@ def compare_dynamics(osim_path: str | os.PathLike[str], mjcf_path: str | os.Path
                            for n in names])
     return DynamicsReport(Path(osim_path).stem, exc.times, names, rotational, ref, mj, list(exc.labels),
                           [r.status for r in runs], [r.reason for r in runs], traj.diverged.copy(),
-                          [m for m in outline.muscles if m not in actuators], [r.wall_time for r in runs])
+                          [m for m in outline.muscles if m not in actuators], [r.wall_time for r in runs],
+                          np.array([outline.ranges[n] for n in names], float))
 
 
 def _opensim_columns(run: OpenSimRun, names: Sequence[str]) -> np.ndarray:

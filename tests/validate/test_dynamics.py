@@ -109,3 +109,21 @@ def test_cli_validate_dynamics(pendulum, tmp_path, capsys):
     write_sto(bad, np.array([0.0, 0.1]), ["nothing"], np.zeros((2, 1)))
     assert main(["validate", "--dynamics", *pendulum, "--motion", str(bad)]) == 1
     assert "no column names a muscle or coordinate" in capsys.readouterr().err
+
+
+def test_report_arithmetic_on_known_trajectories():
+    """Errors, final errors and time outside the range on hand-made trajectories (no simulation)."""
+    t = np.arange(4) * 0.1
+    opensim = np.array([[[0.0, 0.0], [0.1, 0.5], [0.2, 1.5], [np.nan, np.nan]],  # set 0 stops after 3 samples
+                        [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]])
+    mujoco = opensim + np.array([0.0, 0.1, 0.2, 0.3])[None, :, None] * np.array([1.0, -2.0])
+    mujoco[1] = np.array([0.0, 0.1, 0.2, 0.3])[:, None] * np.array([1.0, -2.0])
+    rep = DynamicsReport("toy", t, ["a", "b"], np.array([True, False]), opensim, mujoco, ["s0", "s1"],
+                         ["timeout", "ok"], ["", ""], np.array([False, False]),
+                         ranges=np.array([[-1.0, 1.0], [-1.0, 1.0]]))
+    np.testing.assert_allclose(rep.final_error(), [[0.2, 0.4], [0.3, 0.6]])
+    np.testing.assert_allclose(rep.mean_error(), [(0.1 + 0.2 + 0.1 + 0.2 + 0.3) / 7, 2 * 0.9 / 7])
+    np.testing.assert_allclose(rep.max_error(), [0.3, 0.6])
+    np.testing.assert_allclose(rep.outside_range(), [0.0, 1 / 7])  # b = 1.5 at one of 7 reached samples
+    assert rep.mean_rotational_error() == pytest.approx(0.9 / 7)
+    assert "14.3% of samples" in rep.summary()
