@@ -109,6 +109,10 @@ def test_cli_validate_dynamics(pendulum, tmp_path, capsys):
     write_sto(bad, np.array([0.0, 0.1]), ["nothing"], np.zeros((2, 1)))
     assert main(["validate", "--dynamics", *pendulum, "--motion", str(bad)]) == 1
     assert "no column names a muscle or coordinate" in capsys.readouterr().err
+    degrees = tmp_path / "degrees.sto"
+    write_sto(degrees, np.array([0.0]), ["swing"], np.array([[10.0]]), in_degrees=True)
+    assert main(["validate", "--dynamics", *pendulum, "--initial-state", str(degrees)]) == 1
+    assert "inDegrees=yes" in capsys.readouterr().err
 
 
 def test_report_arithmetic_on_known_trajectories():
