@@ -202,15 +202,14 @@ class DynamicsReport:
         """OpenSim (solid) against MuJoCo (dashed) per coordinate, one colour per set, the
         coordinate's range dotted, as an image (a PNG gets a 64-colour palette)."""
         import matplotlib
-
-        matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
+        from matplotlib.figure import Figure  # not pyplot: no backend or global figure state
 
         n = len(self.coordinates)
         cols = max(1, min(n, 3 if n <= 6 else 4))
         rows = max(1, -(-n // cols))
-        fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.3 * rows), squeeze=False, sharex=True)
-        colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+        fig = Figure(figsize=(3.2 * cols, 2.3 * rows))
+        axes = fig.subplots(rows, cols, squeeze=False, sharex=True)
+        colours = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
         for j, ax in enumerate(axes.flat):
             if j >= n:
                 ax.axis("off")
@@ -243,7 +242,6 @@ class DynamicsReport:
             Image.open(buffer).convert("RGB").quantize(64).save(path, optimize=True)
         else:
             fig.savefig(path, dpi=dpi)
-        plt.close(fig)
         return path
 
 
