@@ -57,10 +57,33 @@ def cmd_convert(a: argparse.Namespace) -> int:
 
 
 def cmd_validate(a: argparse.Namespace) -> int:
+    if a.dynamics:
+        return _validate_dynamics(a)
     from o2m.validate import compare_kinematics
 
     rep = compare_kinematics(a.osim, a.xml, n_poses=a.poses, seed=a.seed, progress=True)
     print(rep.summary())
+    return 0
+
+
+def _validate_dynamics(a: argparse.Namespace) -> int:
+    """``validate --dynamics``: the same excitations in both simulators; exit 1 if no set compares."""
+    from o2m.errors import ValidationError
+    from o2m.osim.simulate import read_initial_state
+    from o2m.validate.dynamics import compare_dynamics
+
+    try:
+        start = read_initial_state(a.initial_state) if a.initial_state else None
+    except ValueError as exc:  # a states file in degrees
+        raise ValidationError(str(exc)) from None
+    rep = compare_dynamics(a.osim, a.xml, n_sets=a.sets, duration=a.duration, seed=a.seed, motion=a.motion,
+                           initial_state=start, timeout=a.timeout, max_workers=a.workers, progress=True)
+    print(rep.summary())
+    if a.plot:
+        print(f"plot -> {rep.plot(a.plot)}")
+    if not rep.compared().any():
+        print("o2m: error: no OpenSim run gave a sample to compare", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -200,11 +223,25 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--no-moment-arm-plots", dest="moment_arm_plots", action="store_false",
                    help="skip the moment-arm sweeps against OpenSim (<stem>.moment_arms.pdf)")
     c.set_defaults(func=cmd_convert)
-    v = sub.add_parser("validate", help="compare a converted model with OpenSim over random poses")
+    v = sub.add_parser("validate", help="compare a converted model with OpenSim over random poses, or over time "
+                       "under the same muscle excitations (--dynamics)")
     v.add_argument("osim")
     v.add_argument("xml")
     v.add_argument("--poses", type=int, default=200)
     v.add_argument("--seed", type=int, default=0)
+    v.add_argument("--dynamics", action="store_true",
+                   help="forward-simulate random excitation sets (or --motion) in both and compare coordinates")
+    v.add_argument("--sets", type=int, default=3, help="random excitation sets (--dynamics)")
+    v.add_argument("--duration", type=float, default=1.0, help="seconds per set (--dynamics)")
+    v.add_argument("--motion", default=None, metavar="FILE",
+                   help="a controls file (.sto/.mot; muscle columns = excitations, coordinate columns = initial "
+                        "pose) instead of random sets (--dynamics)")
+    v.add_argument("--initial-state", default=None, metavar="STO",
+                   help="start from the first row of this states file (e.g. MoBL-ARMS' initial_states.sto) instead "
+                        "of the default pose (--dynamics)")
+    v.add_argument("--plot", default=None, metavar="PNG", help="plot OpenSim vs MuJoCo per coordinate (--dynamics)")
+    v.add_argument("--timeout", type=float, default=300.0, help="wall-clock limit per OpenSim run, s (--dynamics)")
+    v.add_argument("--workers", type=int, default=None, help="parallel OpenSim processes (default: all cores)")
     v.set_defaults(func=cmd_validate)
     f = sub.add_parser("fetch", help="fetch bundled models into the cache (all files when no name is given)")
     f.add_argument("names", nargs="*")

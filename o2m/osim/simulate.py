@@ -33,7 +33,8 @@ import numpy as np
 
 from o2m.osim import runtime
 
-__all__ = ["IntegratorSettings", "OpenSimRun", "read_initial_state", "run_isolated", "run_many", "simulate"]
+__all__ = ["IntegratorSettings", "ModelOutline", "OpenSimRun", "model_outline", "read_initial_state", "run_isolated",
+           "run_many", "simulate"]
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,51 @@ class OpenSimRun:
         per_muscle = np.full((len(times), n_muscles), np.nan)
         return cls(status, reason, np.asarray(times), nan, nan.copy(), per_muscle, per_muscle.copy(),
                    wall_time=wall_time)
+
+
+@dataclass(frozen=True)
+class ModelOutline:
+    """What a forward simulation of a model needs to know before running it.
+
+    Attributes:
+        muscles: muscle names, in the model's order.
+        coordinates: coordinate names, in the model's order.
+        defaults: each coordinate's default value, rad or m.
+        locked: names of the coordinates locked by default (they do not move).
+        rotational: names of the rotational coordinates (the others are translational, m).
+        ranges: each coordinate's range (min, max), rad or m.
+    """
+
+    muscles: tuple[str, ...]
+    coordinates: tuple[str, ...]
+    defaults: dict[str, float]
+    locked: frozenset[str]
+    rotational: frozenset[str]
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+
+def model_outline(osim_path: str | os.PathLike[str]) -> ModelOutline:
+    """Muscles and coordinates of a model, read by OpenSim in this process (a few seconds).
+
+    Raises :class:`o2m.errors.ValidationError` with OpenSim's message if the model does not load.
+    """
+    from o2m.errors import ValidationError
+
+    osim = runtime.opensim()
+    try:
+        model = osim.Model(str(osim_path))
+        model.initSystem()
+    except Exception as exc:  # OpenSim raises RuntimeError subclasses with its own message
+        raise ValidationError(f"{osim_path}: OpenSim could not load the model: {str(exc).strip()[:500]}") from exc
+    muscles = model.getMuscles()
+    coords = model.getCoordinateSet()
+    objs = [coords.get(i) for i in range(coords.getSize())]
+    rotational = osim.Coordinate.Rotational if hasattr(osim.Coordinate, "Rotational") else 1
+    return ModelOutline(tuple(muscles.get(i).getName() for i in range(muscles.getSize())),
+                        tuple(c.getName() for c in objs), {c.getName(): float(c.getDefaultValue()) for c in objs},
+                        frozenset(c.getName() for c in objs if c.getDefaultLocked()),
+                        frozenset(c.getName() for c in objs if c.getMotionType() == rotational),
+                        {c.getName(): (float(c.getRangeMin()), float(c.getRangeMax())) for c in objs})
 
 
 def read_initial_state(path: str | os.PathLike[str]) -> dict[str, float]:
