@@ -103,6 +103,17 @@ def _displacements(slides: list[Slide], x: np.ndarray) -> np.ndarray:
     return sum((np.asarray(s.driver.fn(x), float) - s.ref)[..., None] * s.axis for s in slides)
 
 
+def _principal_slide(key: str, direction: np.ndarray, slides: list[Slide], location: np.ndarray) -> Slide:
+    """The slide along unit ``direction`` (3,) whose value is the component along it of the
+    location ``slides`` give (reference location ``location``, body frame)."""
+    ref = float(direction @ location)
+
+    def value(x: np.ndarray) -> np.ndarray:
+        return ref + _displacements(slides, x) @ direction
+
+    return Slide(key, direction, Driver(slides[0].driver.base, value), ref)
+
+
 def site_name(path: Path, point: PathPoint) -> str:
     """The MuJoCo site name of ``point`` (before it is made unique): prefixed with its path's owner."""
     return point.name if point.name.startswith(path.owner) else f"{path.owner}-{point.name}"
@@ -199,12 +210,8 @@ class Carriers:
             basis = directions[:rank]
             if np.linalg.norm(disp - disp @ basis.T @ basis, axis=1).max() > self.tolerance:
                 continue
-            out = []
-            for key, v in zip("uv", basis, strict=False):
-                v = v if v[np.argmax(np.abs(v))] > 0 else -v  # a sign that does not depend on the SVD
-                fn = (lambda x, v=v: float(v @ point.location) + _displacements(slides, x) @ v)
-                out.append(Slide(key, v, Driver(slides[0].driver.base, fn), float(v @ point.location)))
-            return out
+            return [_principal_slide(key, v if v[np.argmax(np.abs(v))] > 0 else -v, slides, point.location)
+                    for key, v in zip("uv", basis, strict=False)]  # a sign that does not depend on the SVD
         return slides
 
     def plan(self, paths: list[Path]) -> None:

@@ -70,8 +70,8 @@ def speed_bars(speed: dict):
     ax.bar(labels, values, color=["tab:gray", "tab:blue"])
     main = speed.get("models", {}).get("converted")
     if main:  # the spread of MuJoCo's time (OpenSim's sets are too few for one)
-        ax.errorbar([1], [main["median_s"]], yerr=[[main["median_s"] - main["p10_s"]], [main["p90_s"] - main["median_s"]]],
-                    color="k", capsize=4)
+        spread = [[main["median_s"] - main["p10_s"]], [main["p90_s"] - main["median_s"]]]
+        ax.errorbar([1], [main["median_s"]], yerr=spread, color="k", capsize=4)
     ax.set_yscale("log")
     for i, v in enumerate(values):
         ax.text(i, v, f"{v:.3g} s", ha="center", va="bottom")

@@ -31,7 +31,8 @@ __all__ = ["format_speed", "measure_model", "measure_speed"]
 BREAKDOWN = ("STEP", "POS_KINEMATICS", "POS_INERTIA", "POS_MAKE", "VELOCITY", "ACTUATION", "CONSTRAINT", "ADVANCE")
 
 
-def _one_loop(model: mujoco.MjModel, data: mujoco.MjData, state: np.ndarray, controls: np.ndarray) -> tuple[float, float]:
+def _one_loop(model: mujoco.MjModel, data: mujoco.MjData, state: np.ndarray,
+              controls: np.ndarray) -> tuple[float, float]:
     """Wall and thread CPU seconds of one ``mj_step`` loop from ``state`` (nstate,) over
     ``controls`` (T - 1, nu)."""
     mujoco.mj_resetData(model, data)
