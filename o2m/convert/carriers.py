@@ -196,12 +196,13 @@ class Carriers:
     def slides(self, point: PathPoint) -> list[Slide]:
         """The slides of ``point``'s carrier: one per moving axis, or, when the point's
         displacement (m, body frame) over its coordinate's range lies within
-        :attr:`tolerance` of a line or a plane through its reference location, one along each
-        principal direction that line or plane needs (uncentred SVD of the sampled
-        displacements; each slide's value is the location's component along it)."""
+        :attr:`tolerance` of its reference location (none: the point is fixed there), of a line
+        or of a plane through it, one along each principal direction that line or plane needs
+        (uncentred SVD of the sampled displacements; each slide's value is the location's
+        component along it)."""
         slides = [Slide("xyz"[i], np.eye(3)[i], *self._slide_driver(point, i, cname, fn))
                   for i, (cname, fn) in self._moving_axes(point).items()]
-        grid = self._locus_grid(slides) if len(slides) > 1 else None
+        grid = self._locus_grid(slides) if slides else None
         if grid is None:
             return slides
         disp = _displacements(slides, grid)
@@ -268,6 +269,11 @@ class Carriers:
         slides = self.slides(point)
         loc0 = point.location.copy()  # the location at the reference pose, in the body frame
         pos = self.ctx.in_world(point.body, Transform(pos=loc0)).pos
+        if len(slides) < len(self._moving_axes(point)):
+            self.b.result.notes.append(
+                f"{path.owner}: MovingPathPoint '{point.name}' moves within {self.tolerance:g} m of "
+                f"{['its reference location', 'a line', 'a plane'][len(slides)]}: {len(slides)} carrier slides "
+                f"instead of {len(self._moving_axes(point))}")
         if not slides:
             self.b.bodies[point.body].add_site(name=name, pos=pos, size=[0.002, 0, 0], group=3)
             self.b.exact[("site", name)] = {"pos": pos}

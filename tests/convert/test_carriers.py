@@ -105,3 +105,32 @@ def test_sites_follow_their_opensim_location(converted):
             got = rot.T @ (d.site_xpos[m.site(f"{name}-P2").id] - d.xpos[arm])
             np.testing.assert_allclose(got, want, atol=CARRIER_AXIS_TOLERANCE, err_msg=f"{name} at q={q}")
     assert any("rides carrier" in note and "twin" in note for note in conv.report.notes)
+
+
+def test_a_larger_tolerance_trades_slides_for_a_stated_error(tmp_path):
+    """``carrier_tolerance`` 1 cm: "plane" lies within 4.7 mm of a line (one slide), "curve" within
+    8.5 mm of a plane (two): fewer slides, every site within 1 cm of its OpenSim location (and
+    not exactly on it), and the report's notes name each change."""
+    _model(tmp_path / "carriers.osim")
+    tol = 0.01
+    conv = convert(tmp_path / "carriers.osim", tmp_path / "out",
+                   convert_options(path_forces="kinematic", fit_wraps=False, fit_mechanics=False,
+                                   carrier_tolerance=tol))
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    exact = sum(SLIDES.values())
+    assert sum(int(m.body_jntnum[_carrier_of(m, n)]) for n in SLIDES) < exact
+    d, plan, arm = mujoco.MjData(m), joint_equality_plan(m), m.body("arm").id
+    worst = 0.0
+    for q in np.linspace(-1.0, 1.5, 26):
+        pose_mujoco(m, d, {"q": q}, plan=plan)
+        rot = d.xmat[arm].reshape(3, 3)
+        for name, coefs in MOVING.items():
+            want = [np.polyval([float(c) for c in axis.split()], q) for axis in coefs]
+            worst = max(worst, np.linalg.norm(rot.T @ (d.site_xpos[m.site(f"{name}-P2").id] - d.xpos[arm]) - want))
+    assert 0.0 < worst <= tol
+    assert any("carrier slides instead of 3" in note for note in conv.report.notes)
+
+
+def test_a_negative_tolerance_is_refused():
+    with pytest.raises(ValueError, match="carrier_tolerance"):
+        convert_options(carrier_tolerance=-1.0)
