@@ -194,7 +194,7 @@ class Carriers:
         return np.linspace(*self.b.coupling_range(next(iter(bases))), LOCUS_SAMPLES)
 
     def slides(self, point: PathPoint) -> list[Slide]:
-        """The slides of ``point``'s carrier: one per moving axis, or, when the point's
+        """The slides of ``point``'s carrier: one per moving axis whose location is not constant, or, when the point's
         displacement (m, body frame) over its coordinate's range lies within
         :attr:`tolerance` of its reference location (none: the point is fixed there), of a line
         or of a plane through it, one along each principal direction that line or plane needs
@@ -207,13 +207,16 @@ class Carriers:
             return slides
         disp = _displacements(slides, grid)
         directions = np.linalg.svd(disp, full_matrices=False)[2]
-        for rank in range(len(slides)):
+        # axes along which the point does not move at all (a Constant location) go first, and the
+        # others stay as they are when the locus needs them all (their fits and extra joints unchanged)
+        moving = [s for s in slides if np.any(np.asarray(s.driver.fn(grid), float) != s.ref)]
+        for rank in range(len(moving)):
             basis = directions[:rank]
             if np.linalg.norm(disp - disp @ basis.T @ basis, axis=1).max() > self.tolerance:
                 continue
             return [_principal_slide(key, v if v[np.argmax(np.abs(v))] > 0 else -v, slides, point.location)
                     for key, v in zip("uv", basis, strict=False)]  # a sign that does not depend on the SVD
-        return slides
+        return moving
 
     def plan(self, paths: list[Path]) -> None:
         """Choose the carrier slides that get extra joints (:data:`CARRIER_SLOPE_GATE`; none when the
