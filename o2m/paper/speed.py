@@ -8,6 +8,7 @@ converted paper model first; e.g. also an earlier conversion or the wrapped MoBL
   percentile of the wall-clock time of one 1-s simulation, and the median thread CPU time (what a
   busy machine's other processes do not inflate);
 * the per-step time and its breakdown by MuJoCo's own timers (``mjData.timer``, microseconds);
+* their ratio to OpenSim's, by wall clock and by thread CPU time;
 * batched :func:`o2m.mj.simulate.rollout` throughput (simulations per second) on 1 thread and on
   every core, and per core.
 
@@ -107,16 +108,19 @@ def measure_speed(data_dir: str = "data/mobl_arms", *, n_sets: int = 5, model_di
     exp = load_experiment(data_dir, model_dir)
     ds = exp.dataset
     sets = [int(i) for i in np.flatnonzero(ds.ok)[:n_sets]]
-    os_times = []
+    os_times, os_cpu = [], []
     if opensim:
         osim_path = models.fetch_model(ds.meta["model"], progress=False)
         init = read_initial_state(models.fetch(ds.meta["initial_state"]))
         settings = IntegratorSettings(**ds.meta["integrator"])
         for i in tqdm(sets, desc="OpenSim (timed)", unit="run", disable=not progress):
+            cpu = time.thread_time()  # this thread's CPU time, model loading included
             run = simulate(osim_path, ds.times, ds.activations.values[i], list(ds.activations.muscles),
                            initial_state=init, settings=settings)
             os_times.append(run.integration_time if run.ok else np.nan)
+            os_cpu.append(time.thread_time() - cpu if run.ok else np.nan)
     os_med = float(np.nanmedian(os_times)) if os_times else float("nan")
+    os_cpu_med = float(np.nanmedian(os_cpu)) if os_cpu else float("nan")
     measured = {"converted": measure_model(exp.model, exp.init[sets], exp.controls[sets], repeats=repeats, batch=batch)}
     for name, xml in (others or {}).items():
         model = mujoco.MjModel.from_xml_path(str(xml))
@@ -125,8 +129,10 @@ def measure_speed(data_dir: str = "data/mobl_arms", *, n_sets: int = 5, model_di
                                        repeats=repeats, batch=batch)
     for m in measured.values():
         m["ratio"] = os_med / m["median_s"]
+        m["cpu_ratio"] = os_cpu_med / m["cpu_median_s"]
     main = measured["converted"]
-    return {"sets": sets, "opensim_s": os_times, "opensim_median_s": os_med,
+    return {"sets": sets, "opensim_s": os_times, "opensim_median_s": os_med, "opensim_cpu_s": os_cpu,
+            "opensim_cpu_median_s": os_cpu_med,
             "mujoco_median_s": main["median_s"], "ratio": main["ratio"], "rollout_batch": batch,
             "rollout_per_s": main["rollout_per_s"][str(max(1, os.cpu_count() or 1))], "models": measured,
             "rollout_threads": os.cpu_count(), "opensim_dataset_median_wall_s": float(np.median(ds.wall_time[ds.ok])),
@@ -138,15 +144,17 @@ def measure_speed(data_dir: str = "data/mobl_arms", *, n_sets: int = 5, model_di
 def format_speed(speed: dict) -> str:
     """A plain-text table of :func:`measure_speed`'s result, ratios beside absolute times."""
     lines = [f"OpenSim {speed.get('opensim_version')}: {speed['opensim_median_s']:.2f} s per 1-s simulation "
-             f"(integration only, median of {len(speed['opensim_s'])} sets); {speed['machine']}, "
+             f"(integration only, median of {len(speed['opensim_s'])} sets; thread CPU time, loading included: "
+             f"{speed.get('opensim_cpu_median_s', float('nan')):.2f} s); {speed['machine']}, "
              f"load average {speed.get('load_average', float('nan')):.1f}, MuJoCo {speed['mujoco_version']}",
-             f"{'model':>12} {'nv':>4} {'eq':>4} {'1-s sim ms (p10-p90)':>22} {'cpu ms':>7} {'ratio':>6} "
+             f"{'model':>12} {'nv':>4} {'eq':>4} {'1-s sim ms (p10-p90)':>22} {'cpu ms':>7} {'ratio':>6} {'cpu':>6} "
              f"{'rollout/s 1 thr':>15} {'all':>6} {'/core':>6} {'scaling':>7}"]
     for name, m in speed["models"].items():
         per = m["rollout_per_s"]
         lines.append(f"{name:>12} {m['nv']:>4} {m['equalities']:>4} {m['median_s'] * 1e3:>8.1f} "
                      f"({m['p10_s'] * 1e3:5.1f}-{m['p90_s'] * 1e3:5.1f}) {m['cpu_median_s'] * 1e3:>7.1f} "
-                     f"{m['ratio']:>6.0f} {per['1']:>15.1f} {per[max(per, key=int)]:>6.1f} "
+                     f"{m['ratio']:>6.0f} {m.get('cpu_ratio', float('nan')):>6.0f} {per['1']:>15.1f} "
+                     f"{per[max(per, key=int)]:>6.1f} "
                      f"{m['rollout_per_s_per_core']:>6.1f} {m['rollout_scaling']:>7.2f}")
     lines.append("per step, microseconds (MuJoCo timers; kinematics includes the tendons):")
     for name, m in speed["models"].items():
