@@ -23,7 +23,7 @@ def test_measure_model_reports_every_run_timer_and_thread_count():
     assert m["runs"] == 6 and m["nv"] == 1 and m["equalities"] == 0
     assert m["p10_s"] <= m["median_s"] <= m["p90_s"]
     assert set(m["step_us"]) == {name.lower() for name in BREAKDOWN}
-    assert m["step_us"]["step"] > 0 and "1" in m["rollout_per_s"]
+    assert m["step_us"]["step"] > 0 and "1" in m["rollout_per_s"] and "1" in m["rollout_per_cpu_s"]
     m["ratio"] = 1000.0
     table = format_speed({"opensim_median_s": 1.0, "opensim_s": [1.0], "machine": "test", "mujoco_version": "4",
                           "models": {"converted": m}})
