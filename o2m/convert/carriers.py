@@ -8,12 +8,20 @@
   slide whose quartic leaves a derivative error (a moment-arm error) above
   :data:`CARRIER_SLOPE_GATE` RMS gets extra slides on its carrier along the same axis (inner and
   outer joints, as the skeleton's spline couplings: :meth:`Carriers.plan`).
+* A carrier has as few slides as its point's locus needs (:meth:`Carriers.slides`): a point whose
+  moving axes follow one coordinate and whose locus lies on a line (or a plane) to within
+  :data:`CARRIER_AXIS_TOLERANCE` slides along that line (its two principal directions) only, and
+  points of one body that move alike (the same displacement, to that tolerance, at every value
+  of the coordinate) share one carrier (:meth:`Carriers.add_point`). Each slide is a degree of
+  freedom and a joint equality of every simulation step (MoBL-ARMS: 63 carrier slides, 41 after).
 * A ConditionalPathPoint's side site rides a carrier too (:mod:`o2m.convert.conditional`).
 * A carrier on a body welded to the world gets some mass once the model is compiled
   (:meth:`Carriers.weigh_static`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -64,6 +72,46 @@ CARRIER_TARGET = 1e-5
 #: Gait10dof18musc's 0.53, against 0.50 and 0.51 mm fitted to the location alone, whose
 #: derivative errors are 0.4-0.5 mm/rad RMS (1.8-2.8 mm/rad at worst, next to that knot).
 CARRIER_SLOPE_TARGET: float | None = None
+#: Largest distance (m) a carrier's site may leave its point's locus when the carrier gets fewer
+#: slides than the point has moving axes (along the locus's principal directions), or shares
+#: another point's carrier: 1 micrometre, ten times below :data:`CARRIER_TARGET` and far below the
+#: quartics' own errors, so the default stays exact (MoBL-ARMS's straight loci are off their line
+#: by 1e-17 m, its planar ones off their plane by 1e-11 m). ``ConvertOptions.carrier_tolerance``
+#: passes a larger one: a faster, approximate model.
+CARRIER_AXIS_TOLERANCE = 1e-6
+#: Samples of the coordinate's range on which loci are compared (:meth:`Carriers.slides`).
+LOCUS_SAMPLES = 201
+
+
+@dataclass
+class Slide:
+    """One slide of a carrier: ``key`` names it (``"x"``, ``"y"``, ``"z"``: the body's axes;
+    ``"u"``, ``"v"``: the locus's principal directions), ``axis`` (3,) is its unit direction in
+    the OpenSim body frame, ``driver`` gives its value (m) from the base coordinate, ``ref`` its
+    value at the reference pose."""
+
+    key: str
+    axis: np.ndarray
+    driver: Driver
+    ref: float
+
+
+def _displacements(slides: list[Slide], x: np.ndarray) -> np.ndarray:
+    """The carrier's displacement from the reference pose (m, body frame) at base coordinate
+    values ``x``, shape (*x.shape, 3)."""
+    x = np.asarray(x, float)
+    return sum((np.asarray(s.driver.fn(x), float) - s.ref)[..., None] * s.axis for s in slides)
+
+
+def _principal_slide(key: str, direction: np.ndarray, slides: list[Slide], location: np.ndarray) -> Slide:
+    """The slide along unit ``direction`` (3,) whose value is the component along it of the
+    location ``slides`` give (reference location ``location``, body frame)."""
+    ref = float(direction @ location)
+
+    def value(x: np.ndarray) -> np.ndarray:
+        return ref + _displacements(slides, x) @ direction
+
+    return Slide(key, direction, Driver(slides[0].driver.base, value), ref)
 
 
 def site_name(path: Path, point: PathPoint) -> str:
@@ -74,8 +122,13 @@ def site_name(path: Path, point: PathPoint) -> str:
 class Carriers:
     """The carrier bodies of a model's paths, and the names reserved for those with extra joints."""
 
-    def __init__(self, ctx: PathContext):
+    def __init__(self, ctx: PathContext, tolerance: float = CARRIER_AXIS_TOLERANCE):
         self.ctx = ctx
+        #: :data:`CARRIER_AXIS_TOLERANCE` or a larger one (m).
+        self.tolerance = tolerance
+        #: Carriers that another point of the same body may share: (body, base coordinate,
+        #: displacement samples (LOCUS_SAMPLES, 3), carrier body, its position in the parent).
+        self._shareable: list[tuple[str, str, np.ndarray, object, np.ndarray]] = []
         self.b = ctx.b
         #: Site names (by id of the PathPoint) and slide names (by (id, axis)) reserved by
         #: :meth:`plan` for carriers with extra joints.
@@ -132,6 +185,39 @@ class Carriers:
         offset = ref - float(fn(np.array([self.b.ref[cname]]))[0])  # the frame offset of the point
         return self.b.drivers[cname].then(lambda x, fn=fn, offset=offset: fn(x) + offset), ref
 
+    def _locus_grid(self, slides: list[Slide]) -> np.ndarray | None:
+        """Samples (LOCUS_SAMPLES,) of the base coordinate all ``slides`` follow, or None when they
+        follow several (or one without a MuJoCo joint: :meth:`MjcfBuilder.couple` reports it)."""
+        bases = {s.driver.base for s in slides}
+        if len(bases) != 1 or next(iter(bases)) not in self.b.coord_joint:
+            return None
+        return np.linspace(*self.b.coupling_range(next(iter(bases))), LOCUS_SAMPLES)
+
+    def slides(self, point: PathPoint) -> list[Slide]:
+        """The slides of ``point``'s carrier: one per moving axis whose location is not constant, or, when the point's
+        displacement (m, body frame) over its coordinate's range lies within
+        :attr:`tolerance` of its reference location (none: the point is fixed there), of a line
+        or of a plane through it, one along each principal direction that line or plane needs
+        (uncentred SVD of the sampled displacements; each slide's value is the location's
+        component along it)."""
+        slides = [Slide("xyz"[i], np.eye(3)[i], *self._slide_driver(point, i, cname, fn))
+                  for i, (cname, fn) in self._moving_axes(point).items()]
+        grid = self._locus_grid(slides) if slides else None
+        if grid is None:
+            return slides
+        disp = _displacements(slides, grid)
+        directions = np.linalg.svd(disp, full_matrices=False)[2]
+        # axes along which the point does not move at all (a Constant location) go first, and the
+        # others stay as they are when the locus needs them all (their fits and extra joints unchanged)
+        moving = [s for s in slides if np.any(np.asarray(s.driver.fn(grid), float) != s.ref)]
+        for rank in range(len(moving)):
+            basis = directions[:rank]
+            if np.linalg.norm(disp - disp @ basis.T @ basis, axis=1).max() > self.tolerance:
+                continue
+            return [_principal_slide(key, v if v[np.argmax(np.abs(v))] > 0 else -v, slides, point.location)
+                    for key, v in zip("uv", basis, strict=False)]  # a sign that does not depend on the SVD
+        return moving
+
     def plan(self, paths: list[Path]) -> None:
         """Choose the carrier slides that get extra joints (:data:`CARRIER_SLOPE_GATE`; none when the
         builder plans no couplings, ``ConvertOptions.plain_quartics``) and plan
@@ -143,10 +229,10 @@ class Carriers:
         room: dict[object, int] = {}
         for path in paths:
             for point in path.points:
-                moving = self._moving_axes(point)
+                slides = self.slides(point)
                 gated = []
-                for i, (cname, fn) in moving.items():
-                    driver, ref = self._slide_driver(point, i, cname, fn)
+                for slide in slides:
+                    driver, ref = slide.driver, slide.ref
                     base = driver.base
                     if base not in self.b.coord_joint:
                         continue  # couple() reports it
@@ -161,16 +247,16 @@ class Carriers:
                                                               f"cannot follow: {exc}") from None
                     s_rms = polynomial_slope_errors(rel, quartic.coef, lo, hi, self.b.ref[base])[1]
                     if s_rms > CARRIER_SLOPE_GATE and self.b.plan_couplings:
-                        gated.append((i, base, rel))
+                        gated.append((slide.key, base, rel))
                 if not gated:
                     continue
                 site = self.ctx.unique(site_name(path, point))
                 self._site_names[id(point)] = site
-                for i in moving:
-                    self._slide_names[id(point), i] = self.ctx.unique(f"{site}_{'xyz'[i]}")
-                room[site] = MAX_BODY_DOFS - len(moving)
-                for i, base, rel in gated:
-                    groups.setdefault(base, []).append(CoupledAxis(self._slide_names[id(point), i], site, "slide",
+                for slide in slides:
+                    self._slide_names[id(point), slide.key] = self.ctx.unique(f"{site}_{slide.key}")
+                room[site] = MAX_BODY_DOFS - len(slides)
+                for key, base, rel in gated:
+                    groups.setdefault(base, []).append(CoupledAxis(self._slide_names[id(point), key], site, "slide",
                                                                     base, rel))
         for group in groups.values():
             self.b.plan_extra_couplings(group, [a.body for a in group], room,
@@ -180,29 +266,63 @@ class Carriers:
 
     def add_point(self, path: Path, point: PathPoint) -> str:
         """Add the site of ``point`` (a path point, a moving point, or a conditional point kept
-        always on the path); returns its name."""
+        always on the path); returns its name. A moving point rides the carrier of an earlier
+        point of its body that moves alike (:meth:`_shared_carrier`), else a carrier of its own."""
         name = self._site_names.get(id(point)) or self.ctx.unique(site_name(path, point))
-        moving = self._moving_axes(point)
+        slides = self.slides(point)
         loc0 = point.location.copy()  # the location at the reference pose, in the body frame
         pos = self.ctx.in_world(point.body, Transform(pos=loc0)).pos
-        if not moving:
+        if len(slides) < len(self._moving_axes(point)):
+            self.b.result.notes.append(
+                f"{path.owner}: MovingPathPoint '{point.name}' moves within {self.tolerance:g} m of "
+                f"{['its reference location', 'a line', 'a plane'][len(slides)]}: {len(slides)} carrier slides "
+                f"instead of {len(self._moving_axes(point))}")
+        if not slides:
             self.b.bodies[point.body].add_site(name=name, pos=pos, size=[0.002, 0, 0], group=3)
             self.b.exact[("site", name)] = {"pos": pos}
             return name
+        shared = self._shared_carrier(point, slides)
+        if shared is not None:
+            body, offset = shared[0], pos - shared[1]
+            body.add_site(name=name, pos=offset, size=[0.002, 0, 0], group=3)
+            self.b.exact[("site", name)] = {"pos": offset}
+            self.b.result.notes.append(f"{path.owner}: MovingPathPoint '{point.name}' rides carrier '{body.name}' "
+                                       f"(it moves as that carrier's point, within {self.tolerance:g} m)")
+            return name
         body = self.body(point.body, f"{name}_carrier", pos)
-        for i, (cname, fn) in moving.items():
-            axis = np.zeros(3)
-            axis[i] = 1.0
-            axis = self.ctx.in_world(point.body, Transform(pos=axis)).pos
-            driver, ref = self._slide_driver(point, i, cname, fn)
-            jname = self._slide_names.get((id(point), i)) or self.ctx.unique(f"{name}_{'xyz'[i]}")
-            body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=ref,
-                           armature=CARRIER_ARMATURE)
-            self.b.exact[("joint", jname)] = {"axis": axis, "pos": np.zeros(3), "ref": ref}
-            self.b.register_joint(jname, body, mujoco.mjtJoint.mjJNT_SLIDE, axis, np.zeros(3))
-            rec = JointRecord(jname, "slide", path.owner, f"{point.name}/{'xyz'[i]}", None, None, "coordinate")
-            self.b.couple(rec, driver, ref, point.element, high_order=True)
-            self.b.result.joints.append(rec)
-            self.b.result.joints.extend(self.b.pop_extra_records(jname))
+        for slide in slides:
+            self._add_slide(path, point, name, body, slide)
         body.add_site(name=name, pos=[0, 0, 0], size=[0.002, 0, 0], group=3)
+        if not any((id(point), s.key) in self._slide_names for s in slides):  # planned ones are not shared
+            grid = self._locus_grid(slides)
+            if grid is not None:
+                self._shareable.append((point.body, slides[0].driver.base, _displacements(slides, grid), body, pos))
         return name
+
+    def _shared_carrier(self, point: PathPoint, slides: list[Slide]):
+        """(carrier body, its position in the parent) of an earlier point of ``point``'s body whose
+        displacement is ``point``'s within :attr:`tolerance` over the coordinate's range, or None."""
+        if any((id(point), s.key) in self._slide_names for s in slides):
+            return None
+        grid = self._locus_grid(slides)
+        if grid is None:
+            return None
+        disp = _displacements(slides, grid)
+        for body_name, base, other, carrier, pos in self._shareable:
+            if (body_name == point.body and base == slides[0].driver.base
+                    and np.linalg.norm(disp - other, axis=1).max() <= self.tolerance):
+                return carrier, pos
+        return None
+
+    def _add_slide(self, path: Path, point: PathPoint, site: str, body, slide: Slide) -> None:
+        """Add ``slide`` to carrier ``body`` of ``point`` (site ``site``), tied to its coordinate."""
+        axis = self.ctx.in_world(point.body, Transform(pos=slide.axis)).pos
+        jname = self._slide_names.get((id(point), slide.key)) or self.ctx.unique(f"{site}_{slide.key}")
+        body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=slide.ref,
+                       armature=CARRIER_ARMATURE)
+        self.b.exact[("joint", jname)] = {"axis": axis, "pos": np.zeros(3), "ref": slide.ref}
+        self.b.register_joint(jname, body, mujoco.mjtJoint.mjJNT_SLIDE, axis, np.zeros(3))
+        rec = JointRecord(jname, "slide", path.owner, f"{point.name}/{slide.key}", None, None, "coordinate")
+        self.b.couple(rec, slide.driver, slide.ref, point.element, high_order=True)
+        self.b.result.joints.append(rec)
+        self.b.result.joints.extend(self.b.pop_extra_records(jname))

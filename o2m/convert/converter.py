@@ -21,6 +21,7 @@ import numpy as np
 
 from o2m.convert import forces
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.constraints import add_constraints
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.massless import check_massless
@@ -68,6 +69,11 @@ class ConvertOptions:
         plain_quartics: every coupling (skeleton splines, moving path points) one quartic joint
             equality, without the extra joints that bring it within its target: fewer degrees
             of freedom, larger recorded errors (``benchmarks/couplings.py`` compares both).
+        carrier_tolerance: how far (m) a moving path point may leave its locus so that its
+            carrier needs fewer slides (a line or a plane; none: the point fixed) or shares
+            another point's carrier (:mod:`o2m.convert.carriers`). The default, 1 micrometre,
+            is exact; a larger one gives a faster, approximate model (the report's notes name
+            every point it changed).
     """
 
     fit_mechanics: bool = True
@@ -77,10 +83,13 @@ class ConvertOptions:
     quick: bool = False
     workers: int | None = None
     plain_quartics: bool = False
+    carrier_tolerance: float = CARRIER_AXIS_TOLERANCE
 
     def __post_init__(self):
         if self.path_forces not in PATH_FORCE_MODES:
             raise ValueError(f"path_forces must be one of {', '.join(PATH_FORCE_MODES)}, not {self.path_forces!r}")
+        if not 0.0 <= self.carrier_tolerance < float("inf"):
+            raise ValueError(f"carrier_tolerance must be a distance in metres >= 0, not {self.carrier_tolerance!r}")
 
 
 def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = ConvertOptions(),  # noqa: B008 (frozen)
@@ -105,7 +114,8 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     paths = read_paths(reader, builder.ref)
     wraps = read_wrap_objects(reader)
     vias = add_length_vias(builder, paths, wraps, str(osim)) if options.length_vias else []
-    tendons = add_paths(builder, paths, wraps, path_forces=options.path_forces)
+    tendons = add_paths(builder, paths, wraps, path_forces=options.path_forces,
+                        carrier_tolerance=options.carrier_tolerance)
     force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
     muscle_skipped = _fit_mechanics(result, osim, paths, doc) if options.fit_mechanics and any(
         p.owner_type in MUSCLE_TYPES for p in paths) else []

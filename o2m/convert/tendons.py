@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 
 from o2m.convert.builder import MjcfBuilder
-from o2m.convert.carriers import Carriers
+from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE, Carriers
 from o2m.convert.conditional import conditional_geom, conditional_roles
 from o2m.convert.pathforces import PathForces
 from o2m.convert.pathpoints import PathContext
@@ -31,12 +31,13 @@ from o2m.transforms import Transform
 class TendonBuilder:
     """Adds the paths of a skeleton to an :class:`MjcfBuilder`'s spec."""
 
-    def __init__(self, builder: MjcfBuilder, wraps: dict[str, WrapObject], path_forces: str = "auto"):
+    def __init__(self, builder: MjcfBuilder, wraps: dict[str, WrapObject], path_forces: str = "auto",
+                 carrier_tolerance: float = CARRIER_AXIS_TOLERANCE):
         self.ctx = PathContext(builder)
         self.forces = PathForces(self.ctx, path_forces)
         self.b = builder
         self.spec = builder.spec
-        self.carriers = Carriers(self.ctx)
+        self.carriers = Carriers(self.ctx, carrier_tolerance)
         self.wrap_geoms = WrapGeoms(self.ctx, wraps)
         #: One :class:`~o2m.convert.pathforces.PathForceRecord` per path with same-body
         #: MovingPathPoint segments.
@@ -145,11 +146,12 @@ class TendonBuilder:
 
 
 def add_paths(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, WrapObject], *,
-              path_forces: str = "auto") -> TendonBuilder:
+              path_forces: str = "auto", carrier_tolerance: float = CARRIER_AXIS_TOLERANCE) -> TendonBuilder:
     """Add every path (tendon, sites, wrap geoms, actuator) to ``builder``'s spec; returns the
     :class:`TendonBuilder` (its ``path_geoms``, ``exact`` geom values, ``path_forces`` records and
-    ``held`` segments). ``path_forces``: see :mod:`o2m.convert.pathforces`."""
-    tb = TendonBuilder(builder, wraps, path_forces)
+    ``held`` segments). ``path_forces``: see :mod:`o2m.convert.pathforces`; ``carrier_tolerance``
+    (m): see :class:`o2m.convert.carriers.Carriers`."""
+    tb = TendonBuilder(builder, wraps, path_forces, carrier_tolerance)
     tb.carriers.plan(paths)
     for path in paths:
         tb.add_path(path)
