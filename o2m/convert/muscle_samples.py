@@ -46,8 +46,9 @@ class MuscleSample:
     ``lopt``, ``lts`` m, pennation ``alpha`` rad, ``vmax_os`` optimal fiber lengths/s), its
     ``lengthrange`` (m), static tendon forces (N) at activation 1 (``active``) and 0
     (``passive``) at the MTU ``lengths`` (m), the force-velocity multiplier ``fv`` at normalized
-    fiber velocities ``fv_u``, MuJoCo time constants ``timeconst`` (s), the notes so far and the
-    ``seed`` of the fit's random restarts."""
+    fiber velocities ``fv_u``, MuJoCo time constants ``timeconst`` (s), the notes so far, the
+    ``seed`` of the fit's random restarts and ``min_activation``, the activation OpenSim uses when
+    asked for 0 (Thelen's and Millard's ``minimum_activation``; ``passive`` is taken there)."""
 
     name: str
     type: str
@@ -65,6 +66,7 @@ class MuscleSample:
     timeconst: tuple[float, float]
     notes: list[str]
     seed: int
+    min_activation: float = 0.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -431,5 +433,13 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_le
             alpha=_prop(m, "pennation_angle_at_optimal", 0.0), vmax_os=vmax_os, lengthrange=lr[k].copy(),
             lengths=grid[k].copy(), active=f_act[k].copy(), passive=f_pas[k].copy(), fv_u=u, fv=fv,
             timeconst=(float(timeconst[0]), float(timeconst[1])), notes=nt, seed=seed,
+            min_activation=_floor_activation(a_pas[k]),
         ))
     return tasks
+
+
+def _floor_activation(used: np.ndarray) -> float:
+    """The activation OpenSim used when asked for 0 (median over the lengths where it found an
+    equilibrium), 0 when it used 0 or found none."""
+    finite = used[np.isfinite(used)]
+    return float(np.clip(np.median(finite), 0.0, 1.0)) if finite.size else 0.0

@@ -48,6 +48,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import mujoco
 import numpy as np
 
 from o2m.convert.muscle_samples import MuscleSample, _PoseModel, measure_muscles, sample_lengths
@@ -124,6 +125,7 @@ class MuscleParams:
     start_cost: float = math.nan
     start: dict[str, float] = field(default_factory=dict, repr=False)
     velocity_rms_pct: float = math.nan
+    min_activation: float = 0.0
     lengths: np.ndarray | None = field(default=None, repr=False)
     opensim_active: np.ndarray | None = field(default=None, repr=False)
     opensim_passive: np.ndarray | None = field(default=None, repr=False)
@@ -134,11 +136,14 @@ class MuscleParams:
         def fmt(v) -> str:
             return " ".join(f"{float(x):.10g}" for x in np.atleast_1d(v))
 
-        return {
+        attrs = {
             "timeconst": fmt(self.timeconst), "range": fmt(self.range), "force": fmt(self.force),
             "lmin": fmt(self.lmin), "lmax": fmt(self.lmax), "vmax": fmt(self.vmax),
             "fpmax": fmt(self.fpmax), "fvmax": fmt(self.fvmax), "lengthrange": fmt(self.lengthrange),
         }
+        if self.min_activation > 0.0:
+            attrs.update(actlimited="true", actrange=fmt([self.min_activation, 1.0]))
+        return attrs
 
     def unloadable(self) -> str:
         """What MuJoCo would refuse of these parameters ("" when nothing): every number finite, the
@@ -166,6 +171,11 @@ class MuscleParams:
             fpmax=float(self.fpmax), fvmax=float(self.fvmax),
         )
         actuator.lengthrange = [float(v) for v in self.lengthrange]
+        if self.min_activation > 0.0:
+            # OpenSim's minimum activation clamps the activation its force uses, not the state:
+            # MuJoCo clamps the state itself (actrange), which gives the same force.
+            actuator.actlimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            actuator.actrange = [float(self.min_activation), 1.0]
 
 
 class FitResult(dict):
@@ -183,16 +193,18 @@ class FitResult(dict):
 # ---------------------------------------------------------------------------------------------
 
 
-def _residuals(x, s, ya, yp, ma, mp) -> np.ndarray:
-    """Residuals (MuJoCo minus OpenSim, in max isometric forces) at activation 1 then 0, for
+def _residuals(x, s, ya, yp, ma, mp, a_min) -> np.ndarray:
+    """Residuals (MuJoCo minus OpenSim, in max isometric forces) at activation 1 then at the
+    lowest activation ``a_min`` (OpenSim's minimum activation, 0 for most muscle types), for
     x = (range[0], range width, lmin, lmax, fpmax) at lengths s (0..1 across the lengthrange)."""
     r0, w, lmin, lmax, fpmax = x
     L = r0 + s * w
     fp = passive_force(L, lmax, fpmax)
-    return np.concatenate([(active_force_length(L, lmin, lmax) + fp - ya)[ma], (fp - yp)[mp]])
+    fl = active_force_length(L, lmin, lmax)
+    return np.concatenate([(fl + fp - ya)[ma], (a_min * fl + fp - yp)[mp]])
 
 
-def _jacobian(x, s, ya, yp, ma, mp) -> np.ndarray:
+def _jacobian(x, s, ya, yp, ma, mp, a_min) -> np.ndarray:
     """d residuals / d x of :func:`_residuals` (the derivatives of MuJoCo's piecewise curves)."""
     r0, w, lmin, lmax, fpmax = x
     L = r0 + s * w
@@ -213,9 +225,9 @@ def _jacobian(x, s, ya, yp, ma, mp) -> np.ndarray:
     dfp_dL = np.where(hi_half, np.where(quad, fpmax * xq / h, fpmax / h), 0.0)
     dfp_dlmax = np.where(hi_half, -fpmax * (L - 1.0) / (2 * h * h) * np.where(quad, xq, 1.0), 0.0)
     dfp_dfpmax = np.where(hi_half, np.where(quad, 0.5 * xq * xq, 0.5 + (L - b) / h), 0.0)
-    zero = np.zeros_like(L)
     ja = np.column_stack([dfl_dL + dfp_dL, (dfl_dL + dfp_dL) * s, dfl_dlmin, dfl_dlmax + dfp_dlmax, dfp_dfpmax])
-    jp = np.column_stack([dfp_dL, dfp_dL * s, zero, dfp_dlmax, dfp_dfpmax])
+    jp = np.column_stack([a_min * dfl_dL + dfp_dL, (a_min * dfl_dL + dfp_dL) * s, a_min * dfl_dlmin,
+                          a_min * dfl_dlmax + dfp_dlmax, dfp_dfpmax])
     return np.concatenate([ja[ma], jp[mp]])
 
 
@@ -237,7 +249,7 @@ def _fit_length(t: MuscleSample) -> tuple[np.ndarray, np.ndarray, float, float]:
     ya, yp = t.active[idx] / t.force, t.passive[idx] / t.force
     ma, mp = np.isfinite(ya), np.isfinite(yp)
     s = (lengths - t.lengthrange[0]) / max(MJMINVAL, t.lengthrange[1] - t.lengthrange[0])
-    args = (s, ya, yp, ma, mp)
+    args = (s, ya, yp, ma, mp, t.min_activation)
 
     def cost(x):
         r = _residuals(x, *args)
@@ -309,7 +321,7 @@ def _fit_velocity(t: MuscleSample, L0: float) -> tuple[float, float, float]:
 
 def _errors(p: MuscleParams, t: MuscleSample) -> None:
     fa = -mujoco_muscle_force(p, t.lengths, 0.0, 1.0)
-    fp = -mujoco_muscle_force(p, t.lengths, 0.0, 0.0)
+    fp = -mujoco_muscle_force(p, t.lengths, 0.0, p.min_activation)
     ea = (fa - t.active) / t.force * 100
     ep = (fp - t.passive) / t.force * 100
     ea, ep = ea[np.isfinite(ea)], ep[np.isfinite(ep)]
@@ -332,7 +344,8 @@ def _fit_one(t: MuscleSample) -> MuscleParams:
         err_passive_rms_pct=math.nan, notes=list(t.notes), cost=cost, start_cost=start_cost,
         start={"range0": float(x0[0]), "range1": float(x0[0] + x0[1]), "lmin": float(x0[2]),
                "lmax": float(x0[3]), "fpmax": float(x0[4])},
-        velocity_rms_pct=vel_rms, lengths=t.lengths, opensim_active=t.active, opensim_passive=t.passive,
+        velocity_rms_pct=vel_rms, min_activation=t.min_activation, lengths=t.lengths,
+        opensim_active=t.active, opensim_passive=t.passive,
     )
     _errors(p, t)
     return p

@@ -199,6 +199,24 @@ def test_arm26_force_errors(arm26_fit):
     assert s["n"] == 6 and s["active_rms"] <= ARM26_ALL_ACTIVE_RMS_PCT
 
 
+def test_arm26_minimum_activation(arm26_fit):
+    """Thelen's minimum activation (0.01: OpenSim's force never uses less) becomes MuJoCo's
+    actrange, so a muscle left without excitation keeps OpenSim's 1 % of active force, and the
+    passive fit targets MuJoCo's force at that activation."""
+    for p in arm26_fit.values():
+        assert p.min_activation == pytest.approx(0.01)
+        model = _one_muscle_model(p)
+        assert model.actuator_actlimited[0] == 1
+        np.testing.assert_allclose(model.actuator_actrange[0], [0.01, 1.0])
+        data = mujoco.MjData(model)
+        data.qpos[0] = p.lengthrange.mean()
+        for _ in range(200):  # 0.4 s at 2 ms without excitation
+            mujoco.mj_step(model, data)
+        assert data.act[0] == pytest.approx(0.01)
+        err = (-mujoco_muscle_force(p, p.lengths, 0.0, 0.01) - p.opensim_passive) / p.force * 100
+        assert np.nanmax(np.abs(err)) == pytest.approx(p.err_passive_max_pct)
+
+
 def test_arm26_fit_never_worse_than_start(arm26_fit):
     for p in arm26_fit.values():
         assert p.cost <= p.start_cost, p.name
