@@ -123,6 +123,16 @@ class Ligament:
 
 
 @dataclass
+class Spring:
+    """A PointToPointSpring: its tendon, stiffness (N/m) and rest length (m)."""
+
+    name: str
+    tendon: str
+    stiffness: float
+    rest_length: float
+
+
+@dataclass
 class PoseDrift:
     """A global axis or point fixed in a body as at the default pose; measured after building."""
 
@@ -180,6 +190,7 @@ class ForceConversion:
     skipped: list[Skipped] = field(default_factory=list)
     limit_forces: list[LimitForce] = field(default_factory=list)
     ligaments: list[Ligament] = field(default_factory=list)
+    springs: list[Spring] = field(default_factory=list)
     drifts: list[PoseDrift] = field(default_factory=list)
     actuators: list[str] = field(default_factory=list)
     contact: ContactConversion = field(default_factory=ContactConversion)
@@ -188,7 +199,8 @@ class ForceConversion:
 
     @property
     def converted(self) -> int:
-        return len(self.limit_forces) + len(self.ligaments) + len(self.actuators) + len(self.contact.forces)
+        return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.actuators)
+                + len(self.contact.forces))
 
 
 @dataclass

@@ -7,6 +7,7 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
 * **CoordinateLimitForce**: joint springs, dead-band tendons and joint damping
   (:mod:`o2m.convert.limit_forces`).
 * **Ligament**: a spring on the spatial tendon of its path (:mod:`o2m.convert.ligaments`).
+* **PointToPointSpring**: an exact spring on a two-site spatial tendon (:mod:`o2m.convert.springs`).
 * **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
   (:mod:`o2m.convert.actuators`).
 * **HuntCrossleyForce**: geoms for its ContactSpheres and ContactHalfSpaces and explicit contact
@@ -39,6 +40,7 @@ from o2m.convert.contact import convert_hunt_crossley, fit_contacts, measure_con
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_ligament, fit_ligaments, measure_ligaments
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
+from o2m.convert.springs import convert_point_to_point_spring, measure_springs
 from o2m.mj import mjcf_text
 from o2m.osim.skeleton import SkeletonReader, Skipped
 
@@ -51,6 +53,7 @@ __all__ = ["FORCE_TYPES", "HANDLERS", "ForceConversion", "LimitForce", "Ligament
 HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProxyType({
     "CoordinateLimitForce": convert_coordinate_limit_force,
     "Ligament": convert_ligament,
+    "PointToPointSpring": convert_point_to_point_spring,
     "CoordinateActuator": convert_coordinate_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,
@@ -101,5 +104,6 @@ def measure(out: ForceConversion, model: mujoco.MjModel, osim: str | Path, build
     the errors in ``builder.result.approximations``."""
     measure_limit_forces(out, model, osim, builder)
     measure_ligaments(out, model, builder)
+    measure_springs(out, model, builder)
     measure_drifts(out, builder)
     measure_contacts(out, model, builder)

@@ -400,3 +400,75 @@ def test_limit_forces_match_opensim(synthetic, coord):
     assert a.max_error < 0.05 * peak, (a.max_error, peak)
     if coord == "q4":  # Coupled: OpenSim reads limits in rad and stiffness in N m/rad, not degrees
         assert peak > 10.0 and "coupled" in a.detail
+
+
+def _build_springs(path: Path) -> Path:
+    """ground -Pin p1-> s1 -Slider p2-> s2, a PointToPointSpring from ground to s2 (stretched and
+    compressed over the range) and one from s1 to s2."""
+    m = osim.Model()
+    m.setName(path.stem)
+    s1 = osim.Body("s1", 1.2, _v(0.02, -0.2, 0.01), osim.Inertia(0.02, 0.01, 0.015, 0.001, 0.0, -0.002))
+    s2 = osim.Body("s2", 0.8, _v(-0.01, 0.05, 0.02), osim.Inertia(0.01, 0.008, 0.012, 0.0, 0.0005, 0.0))
+    for b in (s1, s2):
+        m.addBody(b)
+    joints = [osim.PinJoint("p1", m.getGround(), _v(0.0, 1.0, 0.0), _v(0.2, 0.0, 0.1), s1, _v(0.0, 0.2, 0.0),
+                            _v(0.0, 0.3, 0.0)),
+              osim.SliderJoint("p2", s1, _v(0.0, -0.3, 0.05), _v(0.0, 0.0, -1.2), s2, _v(0.0, 0.0, 0.0),
+                               _v(0.1, 0.2, 0.0))]
+    for j, (lo, hi, q0) in zip(joints, [(-1.0, 1.2, 0.2), (-0.2, 0.3, 0.05)], strict=True):
+        m.addJoint(j)
+        c = j.upd_coordinates(0)
+        c.setRangeMin(lo)
+        c.setRangeMax(hi)
+        c.setDefaultValue(q0)
+    for name, b1, p1, b2, p2, k, rest in [("to_ground", m.getGround(), (0.3, 0.4, -0.1), s2, (0.02, 0.01, 0.0),
+                                           150.0, 0.5),
+                                          ("between", s1, (-0.05, -0.1, 0.02), s2, (0.01, 0.03, -0.02), 80.0, 0.3)]:
+        spring = osim.PointToPointSpring(b1, _v(*p1), b2, _v(*p2), k, rest)
+        spring.setName(name)
+        m.addForce(spring)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return path
+
+
+def test_point_to_point_springs_match_opensim(tmp_path):
+    """Each PointToPointSpring's generalized force (OpenSim: M · Δq̈ with it on and off) is MuJoCo's
+    passive force of its tendon alone, stretched and compressed, to round-off; the report lists
+    it converted with its measured error."""
+    path = _build_springs(tmp_path / "springs.osim")
+    conv = convert(path, tmp_path / "out", convert_options(fit_mechanics=False))
+    model = osim.Model(str(path))
+    state = model.initSystem()
+    coords = ["p1_coord_0", "p2_coord_0"]
+    assert not conv.report.skipped
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    dofs = [int(m.jnt_dofadr[m.joint(c).id]) for c in coords]
+    cs = model.getCoordinateSet()
+    for name in ("to_ground", "between"):
+        assert _approx(conv.report, "PointToPointSpring", name).max_error < 1e-9
+        only = _isolated(m, tendons=[name])
+        d = mujoco.MjData(only)
+        spring = model.getForceSet().get(name)
+        signs = set()
+        for q1, q2 in [(-1.0, -0.2), (-0.3, 0.3), (0.2, 0.05), (0.9, -0.1), (1.2, 0.25)]:
+            acc = []
+            for on in (False, True):
+                st = osim.State(state)
+                for c, q in zip(coords, (q1, q2), strict=True):
+                    cs.get(c).setValue(st, q, False)
+                for f in ("to_ground", "between"):
+                    model.getForceSet().get(f).setAppliesForce(st, on and f == name)
+                model.realizeAcceleration(st)
+                acc.append(np.array([cs.get(c).getAccelerationValue(st) for c in coords]))
+            d.qpos[:] = [q1, q2]
+            d.qvel[:] = 0.0
+            mujoco.mj_forward(only, d)
+            full = np.zeros((only.nv, only.nv))
+            mujoco.mj_fullM(only, d, full)
+            tau_os = full[np.ix_(dofs, dofs)] @ (acc[1] - acc[0])
+            t = only.tendon(name).id
+            signs.add(np.sign(d.ten_length[t] - only.tendon_lengthspring[t][0]))
+            np.testing.assert_allclose(d.qfrc_passive[dofs], tau_os, atol=1e-8 * max(1.0, np.abs(tau_os).max()))
+            assert np.abs(tau_os).max() > 0.01
+        assert len(signs) == 2  # stretched and compressed
