@@ -133,6 +133,18 @@ class Spring:
 
 
 @dataclass
+class Bushing:
+    """A BushingForce as its joint's linear spring and damper: coordinate ``joint``, stiffness (N m/rad
+    or N/m), springref (rad or m) and damping (N m s/rad or N s/m)."""
+
+    name: str
+    joint: str
+    stiffness: float
+    springref: float
+    damping: float
+
+
+@dataclass
 class PoseDrift:
     """A global axis or point fixed in a body as at the default pose; measured after building."""
 
@@ -191,6 +203,7 @@ class ForceConversion:
     limit_forces: list[LimitForce] = field(default_factory=list)
     ligaments: list[Ligament] = field(default_factory=list)
     springs: list[Spring] = field(default_factory=list)
+    bushings: list[Bushing] = field(default_factory=list)
     drifts: list[PoseDrift] = field(default_factory=list)
     actuators: list[str] = field(default_factory=list)
     contact: ContactConversion = field(default_factory=ContactConversion)
@@ -199,8 +212,8 @@ class ForceConversion:
 
     @property
     def converted(self) -> int:
-        return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.actuators)
-                + len(self.contact.forces))
+        return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.bushings)
+                + len(self.actuators) + len(self.contact.forces))
 
 
 @dataclass

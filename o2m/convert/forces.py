@@ -8,6 +8,9 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
   (:mod:`o2m.convert.limit_forces`).
 * **Ligament**: a spring on the spatial tendon of its path (:mod:`o2m.convert.ligaments`).
 * **PointToPointSpring**: an exact spring on a two-site spatial tendon (:mod:`o2m.convert.springs`).
+* **BushingForce**: its joint's linear spring and damping where its frames are on the two bodies
+  of a one-coordinate joint that turns or slides about one of its axes (:mod:`o2m.convert.bushings`);
+  skipped otherwise.
 * **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
   (:mod:`o2m.convert.actuators`).
 * **HuntCrossleyForce**: geoms for its ContactSpheres and ContactHalfSpaces and explicit contact
@@ -36,6 +39,7 @@ from o2m.convert.actuators import (
     measure_drifts,
 )
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.bushings import convert_bushing
 from o2m.convert.contact import convert_hunt_crossley, fit_contacts, measure_contacts, skip_force, skip_unused_geometry
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_ligament, fit_ligaments, measure_ligaments
@@ -54,6 +58,7 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "CoordinateLimitForce": convert_coordinate_limit_force,
     "Ligament": convert_ligament,
     "PointToPointSpring": convert_point_to_point_spring,
+    "BushingForce": convert_bushing,
     "CoordinateActuator": convert_coordinate_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,

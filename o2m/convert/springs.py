@@ -19,8 +19,17 @@ from lxml import etree
 
 from o2m.convert.actuators import _body_site, _frame_by_name
 from o2m.convert.builder import MjcfBuilder
-from o2m.convert.force_context import N_POSES, ForceConversion, Spring, _Context, _isolated, _number, _random_values, \
-    _tendon_row, _vector
+from o2m.convert.force_context import (
+    N_POSES,
+    ForceConversion,
+    Spring,
+    _Context,
+    _isolated,
+    _number,
+    _random_values,
+    _tendon_row,
+    _vector,
+)
 from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
 from o2m.transforms import Transform
