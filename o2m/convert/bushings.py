@@ -17,7 +17,7 @@ import numpy as np
 from lxml import etree
 from scipy.spatial.transform import Rotation
 
-from o2m.convert.force_context import Bushing, _Context, _vector
+from o2m.convert.force_context import JointSpring, _Context, _vector
 from o2m.convert.limit_forces import set_joint_passive
 from o2m.osim.skeleton import Joint, Skipped
 
@@ -79,7 +79,7 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
         return
     k = float(np.sum(gains * slope ** 2))
     ref = float(-np.sum(gains * slope * offset) / k) if k != 0.0 else 0.0
-    ctx.out.bushings.append(Bushing(name, q, k, ref, float(np.sum(damps * slope ** 2))))
+    ctx.out.joint_springs.append(JointSpring(name, q, k, ref, float(np.sum(damps * slope ** 2))))
     set_joint_passive(ctx, ctx.spec.joint(q), q)
 
 

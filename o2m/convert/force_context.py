@@ -133,9 +133,10 @@ class Spring:
 
 
 @dataclass
-class Bushing:
-    """A BushingForce as its joint's linear spring and damper: coordinate ``joint``, stiffness (N m/rad
-    or N/m), springref (rad or m) and damping (N m s/rad or N s/m)."""
+class JointSpring:
+    """A force that is its joint's linear spring and damper (a BushingForce on one joint, a linear
+    ExpressionBasedCoordinateForce): coordinate ``joint``, stiffness (N m/rad or N/m), springref
+    (rad or m) and damping (N m s/rad or N s/m)."""
 
     name: str
     joint: str
@@ -203,7 +204,7 @@ class ForceConversion:
     limit_forces: list[LimitForce] = field(default_factory=list)
     ligaments: list[Ligament] = field(default_factory=list)
     springs: list[Spring] = field(default_factory=list)
-    bushings: list[Bushing] = field(default_factory=list)
+    joint_springs: list[JointSpring] = field(default_factory=list)
     drifts: list[PoseDrift] = field(default_factory=list)
     actuators: list[str] = field(default_factory=list)
     contact: ContactConversion = field(default_factory=ContactConversion)
@@ -212,7 +213,7 @@ class ForceConversion:
 
     @property
     def converted(self) -> int:
-        return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.bushings)
+        return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.joint_springs)
                 + len(self.actuators) + len(self.contact.forces))
 
 

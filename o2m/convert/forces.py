@@ -11,6 +11,8 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
 * **BushingForce**: its joint's linear spring and damping where its frames are on the two bodies
   of a one-coordinate joint that turns or slides about one of its axes (:mod:`o2m.convert.bushings`);
   skipped otherwise.
+* **ExpressionBasedCoordinateForce**: its joint's spring and damping when the expression is linear
+  in q and qdot (:mod:`o2m.convert.expression_forces`); skipped otherwise.
 * **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
   (:mod:`o2m.convert.actuators`).
 * **HuntCrossleyForce**: geoms for its ContactSpheres and ContactHalfSpaces and explicit contact
@@ -41,6 +43,7 @@ from o2m.convert.actuators import (
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.bushings import convert_bushing
 from o2m.convert.contact import convert_hunt_crossley, fit_contacts, measure_contacts, skip_force, skip_unused_geometry
+from o2m.convert.expression_forces import convert_expression_force
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_ligament, fit_ligaments, measure_ligaments
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
@@ -59,6 +62,7 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "Ligament": convert_ligament,
     "PointToPointSpring": convert_point_to_point_spring,
     "BushingForce": convert_bushing,
+    "ExpressionBasedCoordinateForce": convert_expression_force,
     "CoordinateActuator": convert_coordinate_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,

@@ -218,14 +218,14 @@ def convert_coordinate_limit_force(ctx: _Context, el: etree._Element) -> None:
 
 
 def set_joint_passive(ctx: _Context, joint: mujoco.MjsJoint, name: str) -> None:
-    """The joint's spring and damping: the sums of those of its limit forces and bushings
+    """The joint's spring and damping: the sums of those of its limit forces and joint springs
     (k1 (q - r1) + k2 (q - r2) is one spring of k1 + k2 about their stiffness-weighted mean)."""
     springs = [(s.k, s.ref) for f in ctx.out.limit_forces if f.joint == name for s in f.sides if s.kind == "spring"]
-    springs += [(bu.stiffness, bu.springref) for bu in ctx.out.bushings if bu.joint == name and bu.stiffness != 0.0]
+    springs += [(js.stiffness, js.springref) for js in ctx.out.joint_springs if js.joint == name and js.stiffness]
     k = sum(sk for sk, _ in springs)
     ref = sum(sk * sr for sk, sr in springs) / k if springs and k != 0.0 else 0.0
     damping = sum(f.joint_damping for f in ctx.out.limit_forces if f.joint == name)
-    damping += sum(bu.damping for bu in ctx.out.bushings if bu.joint == name)
+    damping += sum(js.damping for js in ctx.out.joint_springs if js.joint == name)
     joint.stiffness = [k, 0.0, 0.0]
     joint.springref = ref
     joint.damping = [damping, 0.0, 0.0]

@@ -549,3 +549,56 @@ def test_bushing_on_one_joint_matches_opensim(tmp_path):
         tau_os = full[np.ix_(dofs, dofs)] @ (acc[1] - acc[0])
         assert abs(tau_os[1]) > 0.1
         np.testing.assert_allclose(d.qfrc_passive[dofs], tau_os, atol=1e-8 * max(1.0, np.abs(tau_os).max()))
+
+
+def test_linear_expression_forces_match_opensim(tmp_path):
+    """A linear ExpressionBasedCoordinateForce becomes its joint's spring and damping, summed with a
+    second one on the same joint: MuJoCo's passive force equals OpenSim's (M · Δq̈ with them on and
+    off) at poses and speeds; a non-linear one and a constant one are skipped with their reasons."""
+    m = osim.Model()
+    m.setName("expressions")
+    e1 = osim.Body("e1", 1.1, _v(0.02, -0.2, 0.01), osim.Inertia(0.02, 0.01, 0.015, 0.0, 0.0, 0.001))
+    m.addBody(e1)
+    pin = osim.PinJoint("h", m.getGround(), _v(0.0, 1.0, 0.0), _v(0.1, 0.2, 0.0), e1, _v(0.0, 0.2, 0.0),
+                        _v(0.0, 0.0, 0.3))
+    m.addJoint(pin)
+    pin.upd_coordinates(0).setName("h")
+    pin.upd_coordinates(0).setRangeMin(-1.5)
+    pin.upd_coordinates(0).setRangeMax(1.5)
+    forces = {"linear": "-12*q - 0.4*qdot + 3", "second": "2.5*(0.2 - q) - qdot/4", "curved": "-5*sin(q)",
+              "constant": "2"}
+    for name, text in forces.items():
+        f = osim.ExpressionBasedCoordinateForce("h", text)
+        f.setName(name)
+        m.addForce(f)
+    m.finalizeConnections()
+    path = tmp_path / "expressions.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options(fit_mechanics=False))
+    skipped = {s.name: s.reason for s in conv.report.skipped}
+    assert set(skipped) == {"curved", "constant"}
+    assert "not linear" in skipped["curved"] and "constant force" in skipped["constant"]
+    model = osim.Model(str(path))
+    state = model.initSystem()
+    cs = model.getCoordinateSet()
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(mj)
+    for q, v in [(-1.4, 2.0), (0.0, -3.0), (0.7, 0.5), (1.5, 0.0)]:
+        acc = []
+        for on in (False, True):
+            st = osim.State(state)
+            cs.get("h").setValue(st, q, False)
+            cs.get("h").setSpeedValue(st, v)
+            for name in forces:
+                model.getForceSet().get(name).setAppliesForce(st, on and name in ("linear", "second"))
+            model.realizeAcceleration(st)
+            acc.append(cs.get("h").getAccelerationValue(st))
+        d.qpos[:] = q
+        d.qvel[:] = v
+        mujoco.mj_forward(mj, d)
+        full = np.zeros((mj.nv, mj.nv))
+        mujoco.mj_fullM(mj, d, full)
+        tau_os = full[0, 0] * (acc[1] - acc[0])
+        expected = -12 * q - 0.4 * v + 3 + 2.5 * (0.2 - q) - v / 4
+        assert tau_os == pytest.approx(expected, abs=1e-8)  # OpenSim applies what the expressions say
+        assert d.qfrc_passive[0] == pytest.approx(tau_os, abs=1e-8)
