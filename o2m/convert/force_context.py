@@ -123,6 +123,29 @@ class Ligament:
 
 
 @dataclass
+class Spring:
+    """A PointToPointSpring: its tendon, stiffness (N/m) and rest length (m)."""
+
+    name: str
+    tendon: str
+    stiffness: float
+    rest_length: float
+
+
+@dataclass
+class JointSpring:
+    """A force that is its joint's linear spring and damper (a BushingForce on one joint, a linear
+    ExpressionBasedCoordinateForce): coordinate ``joint``, stiffness (N m/rad or N/m), springref
+    (rad or m) and damping (N m s/rad or N s/m)."""
+
+    name: str
+    joint: str
+    stiffness: float
+    springref: float
+    damping: float
+
+
+@dataclass
 class PoseDrift:
     """A global axis or point fixed in a body as at the default pose; measured after building."""
 
@@ -180,6 +203,8 @@ class ForceConversion:
     skipped: list[Skipped] = field(default_factory=list)
     limit_forces: list[LimitForce] = field(default_factory=list)
     ligaments: list[Ligament] = field(default_factory=list)
+    springs: list[Spring] = field(default_factory=list)
+    joint_springs: list[JointSpring] = field(default_factory=list)
     drifts: list[PoseDrift] = field(default_factory=list)
     actuators: list[str] = field(default_factory=list)
     contact: ContactConversion = field(default_factory=ContactConversion)
@@ -188,7 +213,8 @@ class ForceConversion:
 
     @property
     def converted(self) -> int:
-        return len(self.limit_forces) + len(self.ligaments) + len(self.actuators) + len(self.contact.forces)
+        return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.joint_springs)
+                + len(self.actuators) + len(self.contact.forces))
 
 
 @dataclass

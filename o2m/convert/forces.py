@@ -7,6 +7,12 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
 * **CoordinateLimitForce**: joint springs, dead-band tendons and joint damping
   (:mod:`o2m.convert.limit_forces`).
 * **Ligament**: a spring on the spatial tendon of its path (:mod:`o2m.convert.ligaments`).
+* **PointToPointSpring**: an exact spring on a two-site spatial tendon (:mod:`o2m.convert.springs`).
+* **BushingForce**: its joint's linear spring and damping where its frames are on the two bodies
+  of a one-coordinate joint that turns or slides about one of its axes (:mod:`o2m.convert.bushings`);
+  skipped otherwise.
+* **ExpressionBasedCoordinateForce**: its joint's spring and damping when the expression is linear
+  in q and qdot (:mod:`o2m.convert.expression_forces`); skipped otherwise.
 * **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
   (:mod:`o2m.convert.actuators`).
 * **HuntCrossleyForce**: geoms for its ContactSpheres and ContactHalfSpaces and explicit contact
@@ -35,10 +41,13 @@ from o2m.convert.actuators import (
     measure_drifts,
 )
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.bushings import convert_bushing
 from o2m.convert.contact import convert_hunt_crossley, fit_contacts, measure_contacts, skip_force, skip_unused_geometry
+from o2m.convert.expression_forces import convert_expression_force
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_ligament, fit_ligaments, measure_ligaments
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
+from o2m.convert.springs import convert_point_to_point_spring, measure_springs
 from o2m.mj import mjcf_text
 from o2m.osim.skeleton import SkeletonReader, Skipped
 
@@ -51,6 +60,9 @@ __all__ = ["FORCE_TYPES", "HANDLERS", "ForceConversion", "LimitForce", "Ligament
 HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProxyType({
     "CoordinateLimitForce": convert_coordinate_limit_force,
     "Ligament": convert_ligament,
+    "PointToPointSpring": convert_point_to_point_spring,
+    "BushingForce": convert_bushing,
+    "ExpressionBasedCoordinateForce": convert_expression_force,
     "CoordinateActuator": convert_coordinate_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,
@@ -101,5 +113,6 @@ def measure(out: ForceConversion, model: mujoco.MjModel, osim: str | Path, build
     the errors in ``builder.result.approximations``."""
     measure_limit_forces(out, model, osim, builder)
     measure_ligaments(out, model, builder)
+    measure_springs(out, model, builder)
     measure_drifts(out, builder)
     measure_contacts(out, model, builder)

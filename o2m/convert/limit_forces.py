@@ -214,15 +214,18 @@ def convert_coordinate_limit_force(ctx: _Context, el: etree._Element) -> None:
         f.joint_damping = f.damping * 0.5 * (float(weight.max()) + float(weight.min()))
         f.damping_error = abs(f.damping) * 0.5 * float(np.ptp(weight))
     ctx.out.limit_forces.append(f)
-    _set_joint_passive(ctx, joint, f.joint)
+    set_joint_passive(ctx, joint, f.joint)
 
 
-def _set_joint_passive(ctx: _Context, joint: mujoco.MjsJoint, name: str) -> None:
-    """The joint's spring and damping: the sums of those of its limit forces."""
-    springs = [s for f in ctx.out.limit_forces if f.joint == name for s in f.sides if s.kind == "spring"]
-    k = sum(s.k for s in springs)
-    ref = sum(s.k * s.ref for s in springs) / k if springs and k != 0.0 else 0.0
+def set_joint_passive(ctx: _Context, joint: mujoco.MjsJoint, name: str) -> None:
+    """The joint's spring and damping: the sums of those of its limit forces and joint springs
+    (k1 (q - r1) + k2 (q - r2) is one spring of k1 + k2 about their stiffness-weighted mean)."""
+    springs = [(s.k, s.ref) for f in ctx.out.limit_forces if f.joint == name for s in f.sides if s.kind == "spring"]
+    springs += [(js.stiffness, js.springref) for js in ctx.out.joint_springs if js.joint == name and js.stiffness]
+    k = sum(sk for sk, _ in springs)
+    ref = sum(sk * sr for sk, sr in springs) / k if springs and k != 0.0 else 0.0
     damping = sum(f.joint_damping for f in ctx.out.limit_forces if f.joint == name)
+    damping += sum(js.damping for js in ctx.out.joint_springs if js.joint == name)
     joint.stiffness = [k, 0.0, 0.0]
     joint.springref = ref
     joint.damping = [damping, 0.0, 0.0]

@@ -313,3 +313,57 @@ def test_fit_couplings_refuses_a_fit_that_is_not_finite():
     couplings._check_finite(fit)
     with pytest.raises(FitError, match="not finite"):
         couplings._check_finite(replace(fit, inners=fit.inners * np.nan))
+
+
+#: A knee whose tibia and patella follow the knee angle through five coupler splines (x: knee
+#: angle, rad; y: m or rad), as in Leg39, the Jumper and the soccer kick: tibia translations
+#: (tx, ty), patella translations (tx, ty) and patella rotation.
+COUPLER_KNEE_X = {
+    "tib_tx": [-2.0944, -1.74533, -1.39626, -1.0472, -0.698132, -0.349066, -0.174533, 0.197344, 0.337395, 0.490178,
+               1.52146, 2.0944],
+    "tib_ty": [-2.0944, -1.22173, -0.523599, -0.349066, -0.174533, 0.159149, 2.0944],
+    "pat_tx": [-2.0944, -1.39626, -1.0472, -0.698132, -0.349066, -0.174533, 0, 0.00017453, 0.00034907, 0.0872665,
+               2.0944],
+    "pat_ty": [-2.0944, -1.5708, -1.39626, -1.0472, -0.698132, -0.349066, -0.174533, 0, 0.00017453, 0.00034907,
+               0.0872665, 2.0944],
+    "pat_angle": [-2.0944, -1.99997, -1.45752, -0.526391, 0.0279253, 0.174533],
+}
+COUPLER_KNEE_Y = {
+    "tib_tx": [-0.0037561, 0.00210107, 0.00482424, 0.00481249, 0.00248841, -0.00117378, -0.00363871, -0.00613534,
+               -0.00637949, -0.00654265, -0.00637949, -0.00616234],
+    "tib_ty": [-0.496039, -0.479137, -0.468338, -0.466695, -0.465521, -0.463953, -0.464817],
+    "pat_tx": [0.0194405, 0.0364088, 0.042814, 0.0483203, 0.0527029, 0.0543884, 0.0557369, 0.0557369, 0.0557369,
+               0.0557369, 0.0557369],
+    "pat_ty": [-0.0246096, -0.0226993, -0.0224746, -0.0229241, -0.0237107, -0.0246096, -0.0250591, -0.0255086,
+               -0.0255086, -0.0255086, -0.0255086, -0.0255086],
+    "pat_angle": [0.308051, 0.308051, 0.306305, 0.270177, -0.037001, -0.279951],
+}
+
+
+@pytest.mark.parametrize("x0", [0.0, -1.91986209], ids=["reference 0 (Leg39)", "reference -110 deg (soccer kick)"])
+def test_five_coupled_axes_of_two_bodies_reach_the_skeleton_budget(x0):
+    """Five coupler splines of one knee on two bodies (each a hinge and two slides) fill both bodies
+    with one shared inner joint; planned with their translations on bodies of their own, an axis
+    given up while no inner joint served it (the tibia's tx) takes one added later, the split
+    plan is kept, and the patella (its error adds the tibia's) is within the skeleton's
+    0.1 mm / 0.05 deg, whichever knee angle is the reference pose (where the fits are exact)."""
+    from o2m.convert.coupling_plan import CoupledAxis, plan_skeleton
+
+    lo, hi = -2.0943951, 0.17453293
+    body = {"tib_tx": "tibia", "tib_ty": "tibia", "pat_tx": "patella", "pat_ty": "patella", "pat_angle": "patella"}
+    mass = {"tibia": 6.15, "patella": 0.0919}  # each body's main joints' own inertia (kg, kg m² for the hinge)
+    axes = []
+    for name in COUPLER_KNEE_X:
+        spline = SimmSpline(np.array(COUPLER_KNEE_X[name]), np.array(COUPLER_KNEE_Y[name]))
+        axes.append(CoupledAxis(name, body[name], "hinge" if name == "pat_angle" else "slide", "knee",
+                                lambda x, s=spline: s(x) - s(x0)))
+    weights = {a.name: mass[a.body] * (0.012 if a.kind == "hinge" else 1.0) for a in axes}
+    dofs = {("tibia", "slide"): 2, ("tibia", "hinge"): 1, ("patella", "slide"): 2, ("patella", "hinge"): 1}
+    planned, split = plan_skeleton(axes, dofs, weights, {"knee": (lo, hi)}, {"knee": x0}, targets=COUPLING_TARGET,
+                                   slope_targets={"m": None, "rad": None})
+    assert set(split) == {"tibia", "patella"}
+    fit = planned["tib_tx"].fit
+    err = {a.name: fit.axes[i].max_error for i, a in enumerate(axes)}
+    assert len(fit.axes[0].outers) >= 2, fit.structure(0)
+    assert err["tib_tx"] + max(err["pat_tx"], err["pat_ty"]) < 1e-4, err
+    assert err["pat_angle"] < np.deg2rad(0.05), err

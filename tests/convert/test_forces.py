@@ -400,3 +400,205 @@ def test_limit_forces_match_opensim(synthetic, coord):
     assert a.max_error < 0.05 * peak, (a.max_error, peak)
     if coord == "q4":  # Coupled: OpenSim reads limits in rad and stiffness in N m/rad, not degrees
         assert peak > 10.0 and "coupled" in a.detail
+
+
+def _build_springs(path: Path) -> Path:
+    """ground -Pin p1-> s1 -Slider p2-> s2, a PointToPointSpring from ground to s2 (stretched and
+    compressed over the range) and one from s1 to s2."""
+    m = osim.Model()
+    m.setName(path.stem)
+    s1 = osim.Body("s1", 1.2, _v(0.02, -0.2, 0.01), osim.Inertia(0.02, 0.01, 0.015, 0.001, 0.0, -0.002))
+    s2 = osim.Body("s2", 0.8, _v(-0.01, 0.05, 0.02), osim.Inertia(0.01, 0.008, 0.012, 0.0, 0.0005, 0.0))
+    for b in (s1, s2):
+        m.addBody(b)
+    joints = [osim.PinJoint("p1", m.getGround(), _v(0.0, 1.0, 0.0), _v(0.2, 0.0, 0.1), s1, _v(0.0, 0.2, 0.0),
+                            _v(0.0, 0.3, 0.0)),
+              osim.SliderJoint("p2", s1, _v(0.0, -0.3, 0.05), _v(0.0, 0.0, -1.2), s2, _v(0.0, 0.0, 0.0),
+                               _v(0.1, 0.2, 0.0))]
+    for j, (lo, hi, q0) in zip(joints, [(-1.0, 1.2, 0.2), (-0.2, 0.3, 0.05)], strict=True):
+        m.addJoint(j)
+        c = j.upd_coordinates(0)
+        c.setRangeMin(lo)
+        c.setRangeMax(hi)
+        c.setDefaultValue(q0)
+    for name, b1, p1, b2, p2, k, rest in [("to_ground", m.getGround(), (0.3, 0.4, -0.1), s2, (0.02, 0.01, 0.0),
+                                           150.0, 0.5),
+                                          ("between", s1, (-0.05, -0.1, 0.02), s2, (0.01, 0.03, -0.02), 80.0, 0.3)]:
+        spring = osim.PointToPointSpring(b1, _v(*p1), b2, _v(*p2), k, rest)
+        spring.setName(name)
+        m.addForce(spring)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return path
+
+
+def test_point_to_point_springs_match_opensim(tmp_path):
+    """Each PointToPointSpring's generalized force (OpenSim: M · Δq̈ with it on and off) is MuJoCo's
+    passive force of its tendon alone, stretched and compressed, to round-off; the report lists
+    it converted with its measured error."""
+    path = _build_springs(tmp_path / "springs.osim")
+    conv = convert(path, tmp_path / "out", convert_options(fit_mechanics=False))
+    model = osim.Model(str(path))
+    state = model.initSystem()
+    coords = ["p1_coord_0", "p2_coord_0"]
+    assert not conv.report.skipped
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    dofs = [int(m.jnt_dofadr[m.joint(c).id]) for c in coords]
+    cs = model.getCoordinateSet()
+    for name in ("to_ground", "between"):
+        assert _approx(conv.report, "PointToPointSpring", name).max_error < 1e-9
+        only = _isolated(m, tendons=[name])
+        d = mujoco.MjData(only)
+        signs = set()
+        for q1, q2 in [(-1.0, -0.2), (-0.3, 0.3), (0.2, 0.05), (0.9, -0.1), (1.2, 0.25)]:
+            acc = []
+            for on in (False, True):
+                st = osim.State(state)
+                for c, q in zip(coords, (q1, q2), strict=True):
+                    cs.get(c).setValue(st, q, False)
+                for f in ("to_ground", "between"):
+                    model.getForceSet().get(f).setAppliesForce(st, on and f == name)
+                model.realizeAcceleration(st)
+                acc.append(np.array([cs.get(c).getAccelerationValue(st) for c in coords]))
+            d.qpos[:] = [q1, q2]
+            d.qvel[:] = 0.0
+            mujoco.mj_forward(only, d)
+            full = np.zeros((only.nv, only.nv))
+            mujoco.mj_fullM(only, d, full)
+            tau_os = full[np.ix_(dofs, dofs)] @ (acc[1] - acc[0])
+            t = only.tendon(name).id
+            signs.add(np.sign(d.ten_length[t] - only.tendon_lengthspring[t][0]))
+            np.testing.assert_allclose(d.qfrc_passive[dofs], tau_os, atol=1e-8 * max(1.0, np.abs(tau_os).max()))
+            assert np.abs(tau_os).max() > 0.01
+        assert len(signs) == 2  # stretched and compressed
+
+
+def _build_bushings(path: Path) -> Path:
+    """ground -Pin k1-> c1 -Pin k2-> c2 (k2's frames turned about its z axis, offset along it):
+    bushing 'aligned' between frames on c1 and c2 turned about k2's axis and offset along it (its
+    deflection linear in k2), bushing 'tilted' the same with c2's frame tilted off the axis."""
+    m = osim.Model()
+    m.setName(path.stem)
+    c1 = osim.Body("c1", 1.5, _v(0.03, -0.2, 0.0), osim.Inertia(0.03, 0.01, 0.02, 0.001, 0.0, 0.0))
+    c2 = osim.Body("c2", 0.9, _v(0.0, -0.15, 0.02), osim.Inertia(0.01, 0.006, 0.012, 0.0, 0.0005, 0.0))
+    for b in (c1, c2):
+        m.addBody(b)
+    joints = [osim.PinJoint("k1", m.getGround(), _v(0.0, 1.0, 0.0), _v(0.0, 0.0, 0.3), c1, _v(0.0, 0.2, 0.0),
+                            _v(0.0, 0.0, 0.0)),
+              osim.PinJoint("k2", c1, _v(0.02, -0.3, 0.01), _v(0.3, -0.2, 0.5), c2, _v(0.0, 0.1, -0.02),
+                            _v(0.1, 0.4, -0.2))]
+    for j, (lo, hi, q0) in zip(joints, [(-1.0, 1.0, 0.1), (-1.2, 1.4, 0.3)], strict=True):
+        m.addJoint(j)
+        c = j.upd_coordinates(0)
+        c.setRangeMin(lo)
+        c.setRangeMax(hi)
+        c.setDefaultValue(q0)
+    k2 = m.getJointSet().get("k2")
+    parent, child = k2.getParentFrame().findTransformInBaseFrame(), k2.getChildFrame().findTransformInBaseFrame()
+
+    def about_axis(base: osim.Transform, angle: float, along: float, tilt: float = 0.0) -> osim.Transform:
+        turn = osim.Rotation(osim.BodyRotationSequence, tilt, osim.CoordinateAxis(0), 0.0, osim.CoordinateAxis(1),
+                             angle, osim.CoordinateAxis(2))
+        return base.compose(osim.Transform(turn, _v(0.0, 0.0, along)))
+
+    for name, tilt in (("aligned", 0.0), ("tilted", 0.3)):
+        f1 = osim.PhysicalOffsetFrame(f"{name}_on_c1", c1, about_axis(parent, 0.4, 0.05))
+        f2 = osim.PhysicalOffsetFrame(f"{name}_on_c2", c2, about_axis(child, -0.2, 0.05, tilt))
+        c1.addComponent(f1)
+        c2.addComponent(f2)
+        bushing = osim.BushingForce(name, f1, f2, _v(300.0, 200.0, 100.0), _v(3.0, 5.0, 7.0), _v(2.0, 3.0, 4.0),
+                                    _v(0.2, 0.3, 0.4))
+        m.addForce(bushing)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return path
+
+
+def test_bushing_on_one_joint_matches_opensim(tmp_path):
+    """A bushing whose deflection is linear in its joint's coordinate becomes that joint's spring and
+    damping: its generalized force (OpenSim: M · Δq̈ with it on and off) equals MuJoCo's passive force
+    to round-off, at poses and speeds over the range; a tilted one is skipped with its reason."""
+    path = _build_bushings(tmp_path / "bushings.osim")
+    conv = convert(path, tmp_path / "out", convert_options(fit_mechanics=False))
+    [(element, name, reason)] = [(s.element, s.name, s.reason) for s in conv.report.skipped]
+    assert (element, name) == ("BushingForce", "tilted") and "not linear in 'k2_coord_0'" in reason
+    model = osim.Model(str(path))
+    state = model.initSystem()
+    coords = ["k1_coord_0", "k2_coord_0"]
+    cs = model.getCoordinateSet()
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    dofs = [int(m.jnt_dofadr[m.joint(c).id]) for c in coords]
+    assert m.jnt_stiffness[m.joint("k2_coord_0").id] > 0.0
+    for q, v in [((-1.0, -1.2), (0.5, 2.0)), ((0.3, 0.0), (-1.0, -0.5)), ((0.9, 1.4), (0.0, 3.0))]:
+        acc = []
+        for on in (False, True):
+            st = osim.State(state)
+            for c, qi, vi in zip(coords, q, v, strict=True):
+                cs.get(c).setValue(st, qi, False)
+                cs.get(c).setSpeedValue(st, vi)
+            model.getForceSet().get("tilted").setAppliesForce(st, False)
+            model.getForceSet().get("aligned").setAppliesForce(st, on)
+            model.realizeAcceleration(st)
+            acc.append(np.array([cs.get(c).getAccelerationValue(st) for c in coords]))
+        d.qpos[:] = q
+        d.qvel[:] = v
+        mujoco.mj_forward(m, d)
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, full)
+        tau_os = full[np.ix_(dofs, dofs)] @ (acc[1] - acc[0])
+        assert abs(tau_os[1]) > 0.1
+        np.testing.assert_allclose(d.qfrc_passive[dofs], tau_os, atol=1e-8 * max(1.0, np.abs(tau_os).max()))
+
+
+def test_linear_expression_forces_match_opensim(tmp_path):
+    """A linear ExpressionBasedCoordinateForce becomes its joint's spring and damping, summed with a
+    second one on the same joint: MuJoCo's passive force equals OpenSim's (M · Δq̈ with them on and
+    off) at poses and speeds; a non-linear one and a constant one are skipped with their reasons."""
+    m = osim.Model()
+    m.setName("expressions")
+    e1 = osim.Body("e1", 1.1, _v(0.02, -0.2, 0.01), osim.Inertia(0.02, 0.01, 0.015, 0.0, 0.0, 0.001))
+    m.addBody(e1)
+    pin = osim.PinJoint("h", m.getGround(), _v(0.0, 1.0, 0.0), _v(0.1, 0.2, 0.0), e1, _v(0.0, 0.2, 0.0),
+                        _v(0.0, 0.0, 0.3))
+    m.addJoint(pin)
+    pin.upd_coordinates(0).setName("h")
+    pin.upd_coordinates(0).setRangeMin(-1.5)
+    pin.upd_coordinates(0).setRangeMax(1.5)
+    forces = {"linear": "-12*q - 0.4*qdot + 3", "second": "2.5*(0.2 - q) - qdot/4", "curved": "-5*sin(q)",
+              "constant": "2"}
+    for name, text in forces.items():
+        f = osim.ExpressionBasedCoordinateForce("h", text)
+        f.setName(name)
+        m.addForce(f)
+    m.finalizeConnections()
+    path = tmp_path / "expressions.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options(fit_mechanics=False))
+    skipped = {s.name: s.reason for s in conv.report.skipped}
+    assert set(skipped) == {"curved", "constant"}
+    assert "not linear" in skipped["curved"] and "constant force" in skipped["constant"]
+    model = osim.Model(str(path))
+    state = model.initSystem()
+    cs = model.getCoordinateSet()
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(mj)
+    for q, v in [(-1.4, 2.0), (0.0, -3.0), (0.7, 0.5), (1.5, 0.0)]:
+        acc = []
+        for on in (False, True):
+            st = osim.State(state)
+            cs.get("h").setValue(st, q, False)
+            cs.get("h").setSpeedValue(st, v)
+            for name in forces:
+                model.getForceSet().get(name).setAppliesForce(st, on and name in ("linear", "second"))
+            model.realizeAcceleration(st)
+            acc.append(cs.get("h").getAccelerationValue(st))
+        d.qpos[:] = q
+        d.qvel[:] = v
+        mujoco.mj_forward(mj, d)
+        full = np.zeros((mj.nv, mj.nv))
+        mujoco.mj_fullM(mj, d, full)
+        tau_os = full[0, 0] * (acc[1] - acc[0])
+        expected = -12 * q - 0.4 * v + 3 + 2.5 * (0.2 - q) - v / 4
+        assert tau_os == pytest.approx(expected, abs=1e-8)  # OpenSim applies what the expressions say
+        assert d.qfrc_passive[0] == pytest.approx(tau_os, abs=1e-8)

@@ -1,0 +1,102 @@
+"""ExpressionBasedCoordinateForce as a joint spring and damper, when its expression is linear.
+
+OpenSim applies the generalized force ``f(q, qdot)`` (N m or N) to its coordinate, ``f`` a Lepton
+expression of the coordinate's value ``q`` and speed ``qdot``. When ``f = a q + b qdot + c`` on the
+coordinate's range (and speeds of a few turns a second), MuJoCo's joint spring and damping give it
+exactly: ``stiffness = -a``, ``springref = c / -a``, ``damping = -b``, added to the joint's others
+(:func:`o2m.convert.limit_forces.set_joint_passive`). Any other expression (non-linear, a constant
+force without stiffness, a coordinate without its own joint) is skipped with the reason.
+Linearity is checked by evaluating the expression on a grid (a restricted evaluator: numbers,
+``q``, ``qdot``, + - * / ^ and Lepton's functions), not by algebra.
+"""
+
+from __future__ import annotations
+
+import ast
+
+import numpy as np
+from lxml import etree
+
+from o2m.convert.force_context import JointSpring, _Context, _text
+from o2m.convert.limit_forces import set_joint_passive
+from o2m.osim.skeleton import Skipped
+
+__all__ = ["EXPRESSION_LINEAR_TOLERANCE", "convert_expression_force", "evaluate_expression"]
+
+#: An expression counts as linear when a plane a q + b qdot + c fits it within this fraction of
+#: its largest magnitude on the grid.
+EXPRESSION_LINEAR_TOLERANCE = 1e-9
+#: Speeds over which linearity is checked (rad/s or m/s of the coordinate's unit).
+_SPEED = 20.0
+_FUNCTIONS = {"sin": np.sin, "cos": np.cos, "tan": np.tan, "asin": np.arcsin, "acos": np.arccos,
+              "atan": np.arctan, "sinh": np.sinh, "cosh": np.cosh, "tanh": np.tanh, "exp": np.exp,
+              "log": np.log, "sqrt": np.sqrt, "abs": np.abs, "min": np.minimum, "max": np.maximum,
+              "square": np.square, "cube": lambda x: x ** 3, "step": lambda x: np.where(x >= 0, 1.0, 0.0)}
+_BINARY = {ast.Add: np.add, ast.Sub: np.subtract, ast.Mult: np.multiply, ast.Div: np.divide, ast.Pow: np.power}
+
+
+def evaluate_expression(text: str, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+    """Lepton expression ``text`` of ``q`` and ``qdot`` (arrays of one shape) evaluated elementwise.
+    Raises ValueError for anything but numbers, q, qdot, + - * / ^ and Lepton's functions."""
+    tree = ast.parse(text.replace("^", "**"), mode="eval")
+    names = {"q": q, "qdot": qdot}
+
+    def ev(node: ast.AST) -> np.ndarray:
+        if isinstance(node, ast.Expression):
+            return ev(node.body)
+        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
+            return np.full_like(q, float(node.value))
+        if isinstance(node, ast.Name) and node.id in names:
+            return names[node.id]
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            v = ev(node.operand)
+            return -v if isinstance(node.op, ast.USub) else v
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            return _BINARY[type(node.op)](ev(node.left), ev(node.right))
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS:
+            return _FUNCTIONS[node.func.id](*[ev(a) for a in node.args])
+        raise ValueError(f"'{ast.unparse(node)}' is not an expression of q and qdot o2m can evaluate")
+
+    with np.errstate(all="ignore"):
+        return np.asarray(ev(tree), dtype=float)
+
+
+def convert_expression_force(ctx: _Context, el: etree._Element) -> None:
+    """ExpressionBasedCoordinateForce -> its coordinate's joint spring and damping (see the module)."""
+    b = ctx.builder
+    name = el.get("name")
+    coord, text = _text(el, "coordinate"), _text(el, "expression")
+    if coord not in b.skel.coordinates:
+        raise b.doc.error(el, f"acts on coordinate '{coord}', which no joint defines")
+    if coord not in b.coord_joint or b.drivers[coord].base != coord or b.skel.coordinates[coord].locked:
+        ctx.out.skipped.append(Skipped(el.tag, name, f"coordinate '{coord}' has no joint of its own (locked or "
+                                       "coupled): its force is not applied"))
+        return
+    lo, hi = b.fit_range(coord, b.coord_joint[coord][1].kind)
+    q, qdot = (g.ravel() for g in np.meshgrid(np.linspace(lo, hi, 21), np.linspace(-_SPEED, _SPEED, 21)))
+    try:
+        f = evaluate_expression(text or "0", q, qdot)
+    except (ValueError, SyntaxError) as exc:
+        raise b.doc.error(el, f"has <expression> '{text}': {exc}") from None
+    if not np.all(np.isfinite(f)):
+        raise b.doc.error(el, f"has <expression> '{text}', not finite on the coordinate's range")
+    basis = np.stack([q, qdot, np.ones_like(q)], axis=1)
+    (a, damp, c), *_ = np.linalg.lstsq(basis, f, rcond=None)
+    off = float(np.max(np.abs(basis @ [a, damp, c] - f)))
+    scale = max(float(np.max(np.abs(f))), 1e-300)
+    if off > EXPRESSION_LINEAR_TOLERANCE * scale:
+        ctx.out.skipped.append(Skipped(el.tag, name, f"'{text}' is not linear in q and qdot ({off:.3g} off a plane "
+                                       "over the range): MuJoCo's joint spring and damping cannot give it; its "
+                                       "force is not applied"))
+        return
+    if abs(a) * max(abs(lo), abs(hi), 1.0) <= EXPRESSION_LINEAR_TOLERANCE * scale:
+        a = 0.0  # round-off of the fit: no stiffness
+    if a == 0.0 and abs(c) > EXPRESSION_LINEAR_TOLERANCE * scale:
+        ctx.out.skipped.append(Skipped(el.tag, name, f"'{text}' holds a constant force without stiffness, which a "
+                                       "joint spring cannot give; its force is not applied"))
+        return
+    k = -float(a)
+    ref = float(c) / k if k != 0.0 else 0.0
+    ctx.out.joint_springs.append(JointSpring(name, coord, k, ref, -float(damp)))
+    set_joint_passive(ctx, ctx.spec.joint(coord), coord)
+

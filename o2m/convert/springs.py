@@ -1,0 +1,111 @@
+"""PointToPointSpring as a spring on a two-site spatial tendon.
+
+OpenSim's PointToPointSpring pulls its two points together with ``stiffness · (L - rest_length)``
+along the straight line between them (pushing them apart when shorter than ``rest_length``), L
+the points' distance. A MuJoCo spatial tendon through two sites has length L and applies its
+spring ``-stiffness · (L - springlength)`` along that same line (J^T times the tension), so the
+spring converts exactly: ``stiffness`` (N/m) and ``springlength = [rest_length, rest_length]`` (m,
+no dead band). :func:`measure_springs` checks it at random poses (MuJoCo's tendon force against
+the formula at MuJoCo's length).
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+from o2m.convert.actuators import _body_site, _frame_by_name
+from o2m.convert.builder import MjcfBuilder
+from o2m.convert.force_context import (
+    N_POSES,
+    ForceConversion,
+    Spring,
+    _Context,
+    _isolated,
+    _number,
+    _random_values,
+    _tendon_row,
+    _vector,
+)
+from o2m.convert.records import Approximation
+from o2m.osim.skeleton import Skipped
+from o2m.transforms import Transform
+
+__all__ = ["convert_point_to_point_spring", "measure_springs"]
+
+
+def _end_frame(ctx: _Context, el: etree._Element, i: int) -> tuple[str, Transform]:
+    """(body, frame in body) of end ``i``: the path in ``socket_body<i>`` (OpenSim 4) or the body
+    named in ``body<i>`` (3.x)."""
+    if el.find(f"socket_body{i}") is not None:
+        body, frame, _ = ctx.reader.socket_frame(el, f"socket_body{i}")
+        return body, frame
+    return _frame_by_name(ctx, el, f"body{i}")
+
+
+def convert_point_to_point_spring(ctx: _Context, el: etree._Element) -> None:
+    """PointToPointSpring -> a spatial tendon between sites at its two points, with the spring."""
+    b = ctx.builder
+    name = el.get("name")
+    ends = []
+    for i in (1, 2):
+        body, frame = _end_frame(ctx, el, i)
+        ends.append((body, frame.apply(_vector(el, f"point{i}", (0.0, 0.0, 0.0), ctx))))
+    stiffness = _number(el, "stiffness", 1.0, ctx)
+    rest = _number(el, "rest_length", 0.0, ctx)
+    if not (math.isfinite(stiffness) and stiffness >= 0.0):
+        raise b.doc.error(el, f"has <stiffness> {stiffness:g}; a spring needs a finite stiffness >= 0 N/m")
+    if not (math.isfinite(rest) and rest >= 0.0):
+        raise b.doc.error(el, f"has <rest_length> {rest:g}; it must be finite and >= 0 m")
+    if ends[0][0] == ends[1][0]:
+        ctx.out.skipped.append(Skipped(el.tag, name, f"both points are on '{ends[0][0]}' (no force between bodies)"))
+        return
+    sites = [_body_site(ctx, body, f"{name}_point{i}", pos) for i, (body, pos) in enumerate(ends, start=1)]
+    tendon = ctx.spec.add_tendon(name=ctx.unique("tendon", name))
+    for s in sites:
+        tendon.wrap_site(s)
+    tendon.stiffness = [stiffness, 0.0, 0.0]
+    tendon.springlength = [rest, rest]
+    tendon.rgba = [0.9, 0.6, 0.1, 1.0]
+    ctx.out.exact[("tendon", tendon.name)] = {"stiffness": np.array([stiffness, 0.0, 0.0]),
+                                              "springlength": np.array([rest, rest])}
+    ctx.out.springs.append(Spring(name, tendon.name, stiffness, rest))
+
+
+def measure_springs(out: ForceConversion, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
+    """Record each spring's worst |MuJoCo tendon tension - stiffness (L - rest_length)| (N) over
+    random poses in ``builder.result.approximations`` (round-off for the exact mapping)."""
+    for spring in out.springs:
+        m = _isolated(model)
+        t = model.tendon(spring.tendon).id
+        m.tendon_stiffness[t] = model.tendon_stiffness[t]
+        m.tendon_stiffnesspoly[t] = model.tendon_stiffnesspoly[t]
+        worst = _worst_tension_error(spring, m, t, builder)
+        builder.result.approximations.append(Approximation(
+            "PointToPointSpring", spring.name,
+            f"a spring on spatial tendon '{spring.tendon}' between its two points: stiffness "
+            f"{spring.stiffness:g} N/m, springlength {spring.rest_length:g} m", worst, "N",
+            f"MuJoCo's tendon tension against stiffness (L - rest_length) at {N_POSES} poses"))
+
+
+def _worst_tension_error(spring: Spring, m: mujoco.MjModel, t: int, builder: MjcfBuilder) -> float:
+    from o2m.mj.posing import joint_equality_plan, pose_mujoco
+
+    d = mujoco.MjData(m)
+    plan = joint_equality_plan(m)
+    worst = 0.0
+    for values in _random_values(builder, N_POSES):
+        pose_mujoco(m, d, values, plan=plan)
+        d.qvel[:] = 0.0
+        mujoco.mj_fwdPosition(m, d)
+        mujoco.mj_fwdVelocity(m, d)
+        jac = _tendon_row(m, d, t)
+        jj = float(jac @ jac)
+        if jj < 1e-12:
+            continue
+        tension = -float(jac @ d.qfrc_passive) / jj  # qfrc_passive = J^T f, f < 0 when pulling
+        worst = max(worst, abs(tension - spring.stiffness * (float(d.ten_length[t]) - spring.rest_length)))
+    return worst
