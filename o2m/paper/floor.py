@@ -1,0 +1,125 @@
+"""What limits how closely MuJoCo can follow OpenSim on MoBL-ARMS (the floor), measured.
+
+``python -m o2m.paper.floor [--data data/mobl_arms] [--out out/paper]`` prints, on the test sets,
+the mean absolute joint error (rad) of the converted model driven
+
+- by OpenSim's recorded tendon forces (N) on its muscle tendons (:func:`o2m.mj.simulate.force_driven`):
+  the skeleton, the paths' moment arms along MuJoCo's own trajectory and the passive forces;
+- by the same forces mapped to joint forces at OpenSim's own states, ``J(q_OpenSim)ᵀ f`` (N·m,
+  applied as ``qfrc_applied``): the moment arms are frozen along OpenSim's trajectory, so what
+  is left is the skeleton, the constraints and the passive forces, not the paths;
+
+and splits the elbow's error between the sets on which OpenSim extends the elbow to its limit and
+the others.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import mujoco
+import numpy as np
+
+from o2m.mj.posing import joint_equality_plan, joint_qpos_address
+from o2m.mj.simulate import controls_from_forces, force_driven, initial_state, rollout
+from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment
+
+__all__ = ["EXTENDED", "generalized_forces", "generalized_force_run", "tendon_force_run"]
+
+EXTENDED = 0.1
+"""A set extends the elbow to its limit when OpenSim's elbow_flexion goes below this (rad)."""
+
+
+def _forces(exp: Experiment, sets: list[int]) -> np.ndarray:
+    """OpenSim's recorded tendon forces of ``sets`` in ``exp.muscles`` order, (B, T, M) N."""
+    ds = exp.dataset
+    cols = [ds.muscle_names.index(m) for m in exp.muscles]
+    return ds.tendon_forces[sets][:, :, cols].astype(float)
+
+
+def _state(model: mujoco.MjModel, exp: Experiment, i: int, k: int, plan) -> np.ndarray:
+    ds = exp.dataset
+    return initial_state(model, dict(zip(ds.coordinate_names, ds.coordinates[i, k], strict=True)),
+                         speeds=dict(zip(ds.coordinate_names, ds.speeds[i, k], strict=True)), plan=plan)
+
+
+def tendon_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
+    """Joint trajectories (B, T, n_dofs) of the force-driven ``model`` under OpenSim's tendon forces."""
+    plan = joint_equality_plan(model)
+    init = np.stack([_state(model, exp, i, 0, plan) for i in sets])
+    tr = rollout(model, init, controls_from_forces(model, exp.muscles, _forces(exp, sets)), joint_names=exp.dofs)
+    return tr.coordinates
+
+
+def generalized_forces(exp: Experiment, model: mujoco.MjModel, i: int) -> np.ndarray:
+    """OpenSim's tendon forces of set ``i`` as joint forces at OpenSim's states, (T, nv) N·m or N.
+
+    ``model`` is :func:`force_driven`; each sample's ``qfrc_actuator`` with OpenSim's state and
+    OpenSim's forces as controls (MuJoCo's moment arms, within 1.55 mm of OpenSim's).
+    """
+    plan = joint_equality_plan(model)
+    forces = _forces(exp, [i])
+    ctrl = controls_from_forces(model, exp.muscles, np.concatenate([forces, forces[:, -1:]], axis=1), hold=True)[0]
+    data = mujoco.MjData(model)
+    out = np.empty((forces.shape[1], model.nv))
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    for k in range(forces.shape[1]):
+        mujoco.mj_setState(model, data, _state(model, exp, i, k, plan), spec)
+        data.ctrl[:] = ctrl[k]
+        mujoco.mj_forward(model, data)
+        out[k] = data.qfrc_actuator
+    return out
+
+
+def generalized_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
+    """Joint trajectories (B, T, n_dofs) of ``model`` (force-driven, controls at zero) under
+    :func:`generalized_forces`, linear between samples like the tendon forces."""
+    plan = joint_equality_plan(model)
+    adr = [joint_qpos_address(model, d) for d in exp.dofs]
+    data = mujoco.MjData(model)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    out = []
+    for i in sets:
+        g = generalized_forces(exp, model, i)
+        mujoco.mj_setState(model, data, _state(model, exp, i, 0, plan), spec)
+        data.ctrl[:] = 0.0
+        q = [data.qpos[adr].copy()]
+        for k in range(len(g) - 1):
+            data.qfrc_applied[:] = 0.5 * (g[k] + g[k + 1])
+            mujoco.mj_step(model, data)
+            q.append(data.qpos[adr].copy())
+        out.append(np.array(q))
+    return np.array(out)
+
+
+def _row(label: str, err: np.ndarray) -> str:
+    per = np.mean(err, axis=tuple(range(err.ndim - 1)))
+    return f"{label:52s}" + "".join(f"{e:9.4f}" for e in per) + f"{np.mean(per):9.4f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=str(DATA_DIR))
+    ap.add_argument("--out", default="out/paper", help="folder of the converted model (converted if missing)")
+    a = ap.parse_args()
+    exp = load_experiment(a.data, a.out)
+    sets = exp.dataset.test
+    model = force_driven(exp.xml, exp.muscles)
+    ref = exp.reference[sets]
+    q_tendon = tendon_force_run(exp, model, sets)
+    q_joint = generalized_force_run(exp, model, sets)
+    print(f"MoBL-ARMS, {len(sets)} test sets, mean absolute joint error (rad)")
+    print(f"{'':52s}" + "".join(f"{d[:8]:>9s}" for d in exp.dofs) + f"{'mean':>9s}")
+    print(_row("OpenSim's tendon forces on the tendons", np.abs(q_tendon - ref)))
+    print(_row("the same as joint forces at OpenSim's states", np.abs(q_joint - ref)))
+    print(_row("  joint-force run vs tendon-force run", np.abs(q_joint - q_tendon)))
+    elbow = exp.dofs.index("elbow_flexion")
+    extended = ref[:, :, elbow].min(axis=1) < EXTENDED
+    for label, q in (("tendon forces", q_tendon), ("joint forces", q_joint)):
+        e = np.mean(np.abs(q[:, :, elbow] - ref[:, :, elbow]), axis=1)
+        print(f"elbow, {label}: {e[extended].mean():.4f} rad on the {int(extended.sum())} sets OpenSim extends to "
+              f"< {EXTENDED} rad, {e[~extended].mean():.4f} on the other {int((~extended).sum())}")
+
+
+if __name__ == "__main__":
+    main()
