@@ -9,6 +9,10 @@ the mean absolute joint error (rad) of the converted model driven
   applied as ``qfrc_applied``): the moment arms are frozen along OpenSim's trajectory, so what
   is left is the skeleton, the constraints and the passive forces, not the paths;
 
+- by the tendon forces mapped to joint forces at MuJoCo's own pose each step, with every
+  equality-driven joint (carriers, conditional-point switches) placed exactly: the tendon-force
+  run without those joints' lag;
+
 and splits the elbow's error between the sets on which OpenSim extends the elbow to its limit and
 the others.
 """
@@ -20,7 +24,7 @@ import argparse
 import mujoco
 import numpy as np
 
-from o2m.mj.posing import joint_equality_plan, joint_qpos_address
+from o2m.mj.posing import joint_equality_plan, joint_qpos_address, pose_mujoco
 from o2m.mj.simulate import controls_from_forces, force_driven, initial_state, rollout
 from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment
 
@@ -92,6 +96,34 @@ def generalized_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int
     return np.array(out)
 
 
+def exact_carrier_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
+    """Joint trajectories (B, T, n_dofs) of ``model`` (force-driven, controls at zero) under OpenSim's
+    tendon forces mapped to joint forces at MuJoCo's own pose each step, with every equality-driven
+    joint (carriers of moving path points, conditional-point switches) put exactly where its
+    equality says: the tendon-force run without the lag of those joints."""
+    plan = joint_equality_plan(model)
+    names = [n for n in exp.dataset.coordinate_names if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) >= 0]
+    adr = {n: joint_qpos_address(model, n) for n in names}
+    data, posed = mujoco.MjData(model), mujoco.MjData(model)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    out = []
+    for i in sets:
+        f = _forces(exp, [i])
+        ctrl = controls_from_forces(model, exp.muscles, f)[0]
+        mujoco.mj_setState(model, data, _state(model, exp, i, 0, plan), spec)
+        data.ctrl[:] = 0.0
+        q = [data.qpos[[adr[d] for d in exp.dofs]].copy()]
+        for k in range(len(ctrl)):
+            pose_mujoco(model, posed, {n: float(data.qpos[a]) for n, a in adr.items()}, plan=plan)
+            posed.ctrl[:] = ctrl[k]
+            mujoco.mj_forward(model, posed)
+            data.qfrc_applied[:] = posed.qfrc_actuator
+            mujoco.mj_step(model, data)
+            q.append(data.qpos[[adr[d] for d in exp.dofs]].copy())
+        out.append(np.array(q))
+    return np.array(out)
+
+
 def _row(label: str, err: np.ndarray) -> str:
     per = np.mean(err, axis=tuple(range(err.ndim - 1)))
     return f"{label:52s}" + "".join(f"{e:9.4f}" for e in per) + f"{np.mean(per):9.4f}"
@@ -108,14 +140,16 @@ def main() -> None:
     ref = exp.reference[sets]
     q_tendon = tendon_force_run(exp, model, sets)
     q_joint = generalized_force_run(exp, model, sets)
+    q_exact = exact_carrier_run(exp, model, sets)
     print(f"MoBL-ARMS, {len(sets)} test sets, mean absolute joint error (rad)")
     print(f"{'':52s}" + "".join(f"{d[:8]:>9s}" for d in exp.dofs) + f"{'mean':>9s}")
     print(_row("OpenSim's tendon forces on the tendons", np.abs(q_tendon - ref)))
     print(_row("the same as joint forces at OpenSim's states", np.abs(q_joint - ref)))
     print(_row("  joint-force run vs tendon-force run", np.abs(q_joint - q_tendon)))
+    print(_row("tendon forces at MuJoCo's pose, carriers exact", np.abs(q_exact - ref)))
     elbow = exp.dofs.index("elbow_flexion")
     extended = ref[:, :, elbow].min(axis=1) < EXTENDED
-    for label, q in (("tendon forces", q_tendon), ("joint forces", q_joint)):
+    for label, q in (("tendon forces", q_tendon), ("joint forces", q_joint), ("carriers exact", q_exact)):
         e = np.mean(np.abs(q[:, :, elbow] - ref[:, :, elbow]), axis=1)
         print(f"elbow, {label}: {e[extended].mean():.4f} rad on the {int(extended.sum())} sets OpenSim extends to "
               f"< {EXTENDED} rad, {e[~extended].mean():.4f} on the other {int((~extended).sum())}")
