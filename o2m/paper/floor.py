@@ -28,7 +28,8 @@ from o2m.mj.posing import joint_equality_plan, joint_qpos_address, pose_mujoco
 from o2m.mj.simulate import controls_from_forces, force_driven, initial_state, rollout
 from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment
 
-__all__ = ["EXTENDED", "generalized_forces", "generalized_force_run", "tendon_force_run"]
+__all__ = ["EXTENDED", "crossing", "exact_carrier_run", "generalized_force_run", "generalized_forces",
+           "tendon_force_run"]
 
 EXTENDED = 0.1
 """A set extends the elbow to its limit when OpenSim's elbow_flexion goes below this (rad)."""
@@ -55,14 +56,18 @@ def tendon_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) ->
     return tr.coordinates
 
 
-def generalized_forces(exp: Experiment, model: mujoco.MjModel, i: int) -> np.ndarray:
+def generalized_forces(exp: Experiment, model: mujoco.MjModel, i: int,
+                       muscles: list[str] | None = None) -> np.ndarray:
     """OpenSim's tendon forces of set ``i`` as joint forces at OpenSim's states, (T, nv) N·m or N.
 
     ``model`` is :func:`force_driven`; each sample's ``qfrc_actuator`` with OpenSim's state and
-    OpenSim's forces as controls (MuJoCo's moment arms, within 1.55 mm of OpenSim's).
+    OpenSim's forces of ``muscles`` (default all) as controls (MuJoCo's moment arms, within
+    1.55 mm of OpenSim's).
     """
     plan = joint_equality_plan(model)
     forces = _forces(exp, [i])
+    if muscles is not None:
+        forces[..., [m not in muscles for m in exp.muscles]] = 0.0
     ctrl = controls_from_forces(model, exp.muscles, np.concatenate([forces, forces[:, -1:]], axis=1), hold=True)[0]
     data = mujoco.MjData(model)
     out = np.empty((forces.shape[1], model.nv))
@@ -75,25 +80,47 @@ def generalized_forces(exp: Experiment, model: mujoco.MjModel, i: int) -> np.nda
     return out
 
 
-def generalized_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
-    """Joint trajectories (B, T, n_dofs) of ``model`` (force-driven, controls at zero) under
-    :func:`generalized_forces`, linear between samples like the tendon forces."""
+def generalized_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int],
+                          frozen: list[str] | None = None) -> np.ndarray:
+    """Joint trajectories (B, T, n_dofs) of ``model`` (force-driven) under OpenSim's tendon forces,
+    those of the ``frozen`` muscles (default all) as :func:`generalized_forces` at OpenSim's states,
+    the others on their tendons; linear between samples like the tendon forces."""
+    frozen = list(exp.muscles) if frozen is None else frozen
     plan = joint_equality_plan(model)
     adr = [joint_qpos_address(model, d) for d in exp.dofs]
     data = mujoco.MjData(model)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     out = []
     for i in sets:
-        g = generalized_forces(exp, model, i)
+        g = generalized_forces(exp, model, i, frozen)
+        live = _forces(exp, [i])
+        live[..., [m in frozen for m in exp.muscles]] = 0.0
+        ctrl = controls_from_forces(model, exp.muscles, live)[0]
         mujoco.mj_setState(model, data, _state(model, exp, i, 0, plan), spec)
-        data.ctrl[:] = 0.0
         q = [data.qpos[adr].copy()]
         for k in range(len(g) - 1):
+            data.ctrl[:] = ctrl[k]
             data.qfrc_applied[:] = 0.5 * (g[k] + g[k + 1])
             mujoco.mj_step(model, data)
             q.append(data.qpos[adr].copy())
         out.append(np.array(q))
     return np.array(out)
+
+
+def crossing(exp: Experiment, model: mujoco.MjModel, dof: str, i: int = 0) -> list[str]:
+    """The muscles whose length changes with ``dof`` (moment arm above 1 mm) at set ``i``'s initial pose."""
+    plan = joint_equality_plan(model)
+    data = mujoco.MjData(model)
+    pose = {n: v for n, v in zip(exp.dataset.coordinate_names, exp.dataset.coordinates[i, 0], strict=True)
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) >= 0}
+    lengths = []
+    for dq in (-1e-4, 1e-4):
+        pose_mujoco(model, data, {**pose, dof: pose[dof] + dq}, plan=plan)
+        mujoco.mj_tendon(model, data)
+        mujoco.mj_transmission(model, data)
+        lengths.append(data.actuator_length.copy())
+    arm = (lengths[1] - lengths[0]) / 2e-4
+    return [m for m in exp.muscles if abs(arm[model.actuator(m).id]) > 1e-3]
 
 
 def exact_carrier_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
@@ -141,15 +168,22 @@ def main() -> None:
     q_tendon = tendon_force_run(exp, model, sets)
     q_joint = generalized_force_run(exp, model, sets)
     q_exact = exact_carrier_run(exp, model, sets)
+    elbow_muscles = crossing(exp, model, "elbow_flexion", sets[0])
+    q_elbow_frozen = generalized_force_run(exp, model, sets, frozen=elbow_muscles)
+    q_others_frozen = generalized_force_run(exp, model, sets, frozen=[m for m in exp.muscles if m not in elbow_muscles])
     print(f"MoBL-ARMS, {len(sets)} test sets, mean absolute joint error (rad)")
     print(f"{'':52s}" + "".join(f"{d[:8]:>9s}" for d in exp.dofs) + f"{'mean':>9s}")
     print(_row("OpenSim's tendon forces on the tendons", np.abs(q_tendon - ref)))
     print(_row("the same as joint forces at OpenSim's states", np.abs(q_joint - ref)))
     print(_row("  joint-force run vs tendon-force run", np.abs(q_joint - q_tendon)))
     print(_row("tendon forces at MuJoCo's pose, carriers exact", np.abs(q_exact - ref)))
+    print(_row(f"the {len(elbow_muscles)} elbow muscles frozen, the rest on tendons", np.abs(q_elbow_frozen - ref)))
+    print(_row("the other muscles frozen, elbow muscles on tendons", np.abs(q_others_frozen - ref)))
+    print("elbow muscles:", " ".join(elbow_muscles))
     elbow = exp.dofs.index("elbow_flexion")
     extended = ref[:, :, elbow].min(axis=1) < EXTENDED
-    for label, q in (("tendon forces", q_tendon), ("joint forces", q_joint), ("carriers exact", q_exact)):
+    for label, q in (("tendon forces", q_tendon), ("joint forces", q_joint), ("carriers exact", q_exact),
+                     ("elbow muscles frozen", q_elbow_frozen), ("other muscles frozen", q_others_frozen)):
         e = np.mean(np.abs(q[:, :, elbow] - ref[:, :, elbow]), axis=1)
         print(f"elbow, {label}: {e[extended].mean():.4f} rad on the {int(extended.sum())} sets OpenSim extends to "
               f"< {EXTENDED} rad, {e[~extended].mean():.4f} on the other {int((~extended).sum())}")
