@@ -58,21 +58,21 @@ def tendon_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) ->
 
 def generalized_forces(exp: Experiment, model: mujoco.MjModel, i: int,
                        muscles: list[str] | None = None) -> np.ndarray:
-    """OpenSim's tendon forces of set ``i`` as joint forces at OpenSim's states, (T, nv) N·m or N.
+    """OpenSim's tendon forces of set ``i`` as joint forces at OpenSim's states, (T - 1, nv) N·m or N.
 
-    ``model`` is :func:`force_driven`; each sample's ``qfrc_actuator`` with OpenSim's state and
-    OpenSim's forces of ``muscles`` (default all) as controls (MuJoCo's moment arms, within
-    1.55 mm of OpenSim's).
+    ``model`` is :func:`force_driven`; step ``k``'s ``qfrc_actuator`` at OpenSim's state ``k`` with
+    the step's controls (the mean force over the step, as the tendon-force run applies it) of
+    ``muscles`` (default all): MuJoCo's moment arms, within 1.55 mm of OpenSim's.
     """
     plan = joint_equality_plan(model)
     forces = _forces(exp, [i])
     if muscles is not None:
         forces[..., [m not in muscles for m in exp.muscles]] = 0.0
-    ctrl = controls_from_forces(model, exp.muscles, np.concatenate([forces, forces[:, -1:]], axis=1), hold=True)[0]
+    ctrl = controls_from_forces(model, exp.muscles, forces)[0]
     data = mujoco.MjData(model)
-    out = np.empty((forces.shape[1], model.nv))
+    out = np.empty((len(ctrl), model.nv))
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    for k in range(forces.shape[1]):
+    for k in range(len(ctrl)):
         mujoco.mj_setState(model, data, _state(model, exp, i, k, plan), spec)
         data.ctrl[:] = ctrl[k]
         mujoco.mj_forward(model, data)
@@ -84,7 +84,8 @@ def generalized_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int
                           frozen: list[str] | None = None) -> np.ndarray:
     """Joint trajectories (B, T, n_dofs) of ``model`` (force-driven) under OpenSim's tendon forces,
     those of the ``frozen`` muscles (default all) as :func:`generalized_forces` at OpenSim's states,
-    the others on their tendons; linear between samples like the tendon forces."""
+    the others on their tendons. Were MuJoCo's trajectory OpenSim's, every step would apply the
+    same joint forces as the tendon-force run."""
     frozen = list(exp.muscles) if frozen is None else frozen
     plan = joint_equality_plan(model)
     adr = [joint_qpos_address(model, d) for d in exp.dofs]
@@ -98,9 +99,9 @@ def generalized_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int
         ctrl = controls_from_forces(model, exp.muscles, live)[0]
         mujoco.mj_setState(model, data, _state(model, exp, i, 0, plan), spec)
         q = [data.qpos[adr].copy()]
-        for k in range(len(g) - 1):
+        for k in range(len(g)):
             data.ctrl[:] = ctrl[k]
-            data.qfrc_applied[:] = 0.5 * (g[k] + g[k + 1])
+            data.qfrc_applied[:] = g[k]
             mujoco.mj_step(model, data)
             q.append(data.qpos[adr].copy())
         out.append(np.array(q))
