@@ -4,8 +4,9 @@
 :func:`o2m.paper.run_paper`) and ``speed.json`` (from :mod:`o2m.speed`) and writes PNG and PDF
 files to ``figures/``:
 
-1. ``joint_errors``: mean absolute error per joint over the test sets (rad): converted, after the
-   muscle force fit, after the CMA-ES fit, with corrective controls.
+1. ``joint_errors``: mean absolute error per joint over the test sets (rad): converted; the paper's
+   pipeline (CMA-ES fit of the converted model, then corrective controls); o2m's (muscle force fit,
+   CMA-ES fit, corrective controls).
 2. ``corrections_boxplot``: per muscle, the mean absolute activation correction over the test sets.
 3. ``speed``: time of one 1-s simulation in OpenSim and in MuJoCo, and their ratio.
 4. ``overlay``: joint trajectories of a few test sets, OpenSim against MuJoCo.
@@ -34,7 +35,7 @@ def _plt():
 def joint_error_bars(dofs: list[str], errors: dict[str, np.ndarray]):
     """Grouped bars of the mean absolute error per joint (rad); ``errors`` maps a label to (n_sets, n_dofs)."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.5))
+    fig, ax = plt.subplots(figsize=(10, 3.8))
     width = 0.8 / max(1, len(errors))
     x = np.arange(len(dofs))
     for k, (label, e) in enumerate(errors.items()):
@@ -110,6 +111,11 @@ def _save(fig, out: Path, name: str) -> list[Path]:
     return paths
 
 
+def _order(label: str, stages: dict[str, str]) -> int:
+    """Position of a (possibly annotated) stage label among ``stages``."""
+    return next(k for k, name in enumerate(stages.values()) if label.startswith(name))
+
+
 def make_figures(results_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str] = "figures",
                  speed_file: str | os.PathLike[str] | None = None) -> list[Path]:
     """Write every figure that the stored results allow; returns the files written."""
@@ -121,13 +127,19 @@ def make_figures(results_dir: str | os.PathLike[str], out_dir: str | os.PathLike
         with np.load(npz) as z:
             r = {k: z[k] for k in z.files}
         dofs, muscles = [str(d) for d in r["dofs"]], [str(m) for m in r["muscles"]]
-        stages = {"converted": "converted", "forces": "muscle forces fitted", "fitted": "+ CMA-ES fit",
-                  "corrected": "+ corrections"}
+        stages = {"converted": "converted", "paper_fitted": "paper: + CMA-ES fit",
+                  "paper_corrected": "paper: + corrections", "forces": "o2m: muscle forces fitted",
+                  "fitted": "o2m: + CMA-ES fit", "corrected": "o2m: + corrections"}
         errors = {label: r[f"err_{key}"] for key, label in stages.items() if f"err_{key}" in r}
+        if "paper_corrected_sets" in r and len(r["paper_corrected_sets"]) < len(r["test"]):
+            n = len(r["paper_corrected_sets"])
+            errors[f"{stages['paper_corrected']} (first {n} sets)"] = errors.pop(stages["paper_corrected"])
+            errors = {label: errors[label] for label in sorted(errors, key=lambda x: _order(x, stages))}
         written += _save(joint_error_bars(dofs, errors), out, "joint_errors")
         written += _save(correction_boxplot(muscles, r["correction_mae"]), out, "corrections_boxplot")
         for k, s in enumerate(r["overlay_sets"]):
-            curves = {label: r[f"overlay_{key}"][k] for key, label in stages.items() if f"overlay_{key}" in r}
+            curves = {label: r[f"overlay_{key}"][k] for key, label in stages.items()
+                      if f"overlay_{key}" in r and k < len(r[f"overlay_{key}"])}
             written += _save(overlay(r["times"], dofs, r["overlay_opensim"][k], curves, f"test set {int(s)}"),
                              out, f"overlay_set{int(s):03d}")
     sp = Path(speed_file) if speed_file else res_dir.parent / "speed.json"

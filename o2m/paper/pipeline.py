@@ -3,15 +3,21 @@
 :func:`load_experiment` converts the bundled MoBL-ARMS model (no wrap objects, wrist locked; the
 model the OpenSim references were computed with) and lays the stored dataset out for MuJoCo:
 initial states, controls and OpenSim joint trajectories of every successful set.
-:func:`run_paper` then fits the model in two stages on the training sets: first each muscle's
-force to OpenSim's tendon forces along the training trajectories (:mod:`o2m.force_fit`, which
-the paper did not do), then the paper's 160 parameters to the joint trajectories with CMA-ES
-(:mod:`o2m.fitting`). It fits corrective controls on the test sets (:mod:`o2m.corrections`) and
-writes everything the figures need to ``<data>/results/``:
+:func:`run_paper` then runs two pipelines on the training sets. The paper's: the paper's 160
+parameters fitted to the joint trajectories with CMA-ES (:mod:`o2m.fitting`), the best training
+candidate kept. o2m's: first each muscle's force to OpenSim's tendon forces along the training
+trajectories (:mod:`o2m.force_fit`, which the paper did not do), then the same CMA-ES fit,
+early-stopped on the validation sets. It fits corrective controls on the test sets
+(:mod:`o2m.corrections`) for both, measures every stage on the training, validation, test and
+fresh sets (:data:`FRESH_DIR`) and writes everything the figures need to ``<data>/results/``:
 
 ``muscle_forces.json`` the muscle force fit (:meth:`o2m.force_fit.ForceFit.save`)
 ``parameters.json``   the CMA-ES fit (:func:`o2m.fitting.save_fit`)
-``checkpoint.pkl``    CMA-ES state, to resume an interrupted fit (not kept in git)
+``parameters_paper.json`` the paper's pipeline: the same CMA-ES fit of the converted model (no muscle force
+                      fit), the best training candidate (no early stopping)
+``*_checkpoint.pkl``  CMA-ES state, to resume an interrupted fit (not kept in git)
+``corrections.npz``, ``corrections_paper.npz`` the corrective controls' results of each pipeline,
+                      reused while the corrected model, sets and budget are the same
 ``results.npz``       per test set and DoF, mean absolute joint error (rad) of the converted,
                       force-fitted, fitted and corrected model; per test set and muscle, mean absolute
                       correction; joint trajectories of the first test sets for the overlay
@@ -25,7 +31,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -50,6 +56,9 @@ from o2m.paper.force_fit import ForceFit, fit_forces, sample_states, static_curv
 __all__ = ["Experiment", "FULL", "QUICK", "Settings", "joint_mae", "load_experiment", "run_paper"]
 
 DATA_DIR = Path("data/mobl_arms")
+#: Under the data folder: excitation sets drawn with another seed (2026) and their OpenSim runs,
+#: never used in any fit (``make_dataset(DATA_DIR / FRESH_DIR, n_sets=8, seed=2026)``).
+FRESH_DIR = "fresh_seed2026"
 
 
 @dataclass(frozen=True)
@@ -67,13 +76,18 @@ class Settings:
     overlay_sets: int = 3
     seed: int = 0
     quick_conversion: bool = False  # the converter's quick wrap-fit sizes (ConvertOptions.quick)
+    paper_generations: int | None = None  # CMA-ES generations of the paper's pipeline (None: generations)
+    paper_correction_sets: int | None = None  # the first so many test sets get the paper pipeline's corrections
 
 
 #: The budget of the stored result: the muscle force fit on every other sample of the training
 #: sets; 40 generations of 12 candidates, each simulated on all training sets (early-stopped on the
 #: validation sets); corrections with 6 generations per spline block and 3 passes over the blocks
 #: (on 4 test sets: 1 pass 0.0116 rad, 2 passes 0.0087, 3 passes 0.0078, 4 passes 0.0076).
-FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=6)
+#: The paper's pipeline got 13 generations (its fit ran on a machine shared five ways: 36 minutes) and
+#: its corrections the first 3 test sets only (about 10 minutes a set there).
+FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=6,
+                paper_generations=13, paper_correction_sets=3)
 QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2, correction_sweeps=1,
                  force_stride=10, force_nfev=60, quick_conversion=True)
 
@@ -146,11 +160,8 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     ``executor`` (any :class:`concurrent.futures.Executor`, e.g. a Dask client's ``get_executor()``)
     evaluates the CMA-ES candidates, one task each; by default they run here on all cores.
     """
-    from tqdm.auto import tqdm
-
-    from o2m.paper.corrections import fit_corrections
-
-    exp = load_experiment(data_dir, model_dir, options=ConvertOptions(quick=settings.quick_conversion))
+    options = ConvertOptions(quick=settings.quick_conversion)
+    exp = load_experiment(data_dir, model_dir, options=options)
     out = Path(results_dir) if results_dir else Path(data_dir) / "results"
     out.mkdir(parents=True, exist_ok=True)
     train = exp.dataset.train[: settings.train_sets] if settings.train_sets else exp.dataset.train
@@ -160,74 +171,183 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
                                progress=progress)
     force_model = forces.apply(exp.model)
     force_seconds = time.perf_counter() - t_force
-    space = parameter_space(force_model, exp.dofs, exp.muscles)
-    objective = TrajectoryObjective(force_model, space, exp.init[train], exp.controls[train], exp.reference[train],
-                                    exp.dofs, executor=executor)
     held = [i for i in exp.dataset.validation if exp.dataset.ok[i]]
-    validation = TrajectoryObjective(force_model, space, exp.init[held], exp.controls[held], exp.reference[held],
-                                     exp.dofs) if held else None
-    fit_file = out / "parameters.json"
+    t_paper = time.perf_counter()
+    paper_settings = replace(settings, generations=settings.paper_generations or settings.generations)
+    paper_space, paper_fit = fit_parameters(exp, exp.model, train, held, out / "parameters_paper.json",
+                                            settings=paper_settings, refit=refit, progress=progress,
+                                            executor=executor, early_stopping=False)
+    paper_seconds = time.perf_counter() - t_paper
     t0 = time.perf_counter()
-    if fit_file.exists() and not refit:
-        fit = load_fit(fit_file)
-        if fit.names != space.names:
-            raise ValueError(f"{fit_file} has other parameters than this model; rerun with refit=True")
-    else:
-        ckpt = out / "checkpoint.pkl"
-        if ckpt.exists() and not checkpoint_matches(ckpt, objective.space, settings.seed):
-            print(f"{ckpt}: left by a fit from another start (an earlier run); starting afresh")
-            ckpt.unlink()
-        fit = fit_cma(objective, seed=settings.seed, generations=settings.generations, popsize=settings.popsize,
-                      checkpoint=ckpt, progress=progress, validation=validation,
-                      settings={"train_sets": train, "validation_sets": held, "data": str(data_dir),
-                                "xml": exp.xml.name})
-        save_fit(fit_file, fit, space)
+    space, fit = fit_parameters(exp, force_model, train, held, out / "parameters.json", settings=settings,
+                                refit=refit, progress=progress, executor=executor, early_stopping=True)
     fit_seconds = time.perf_counter() - t0
     fitted = space.apply(force_model, fit.x)
     fitted_xml = exp.xml.with_name(exp.xml.stem + "_fitted.xml")  # beside the converted model: its meshes
     forces.write_mjcf(exp.xml, fitted_xml)
     space.write_mjcf(force_model, fit.x, fitted_xml, fitted_xml)
 
-    err_converted, q_converted = joint_mae(exp, exp.model, test)
-    err_forces, q_forces = joint_mae(exp, force_model, test)
-    err_fitted, q_fitted = joint_mae(exp, fitted, test)
-    corr_err, corr_size, q_corrected = [], [], []
+    paper_fitted = paper_space.apply(exp.model, paper_fit.x)
+    stage_models = {"converted": exp.model, "force_fitted": force_model, "fitted": fitted,
+                    "paper_fitted": paper_fitted}
+    errors, trajectories = {}, {}
+    for name, m in stage_models.items():
+        errors[name], trajectories[name] = joint_mae(exp, m, test)
     t1 = time.perf_counter()
-    for i in tqdm(test, desc="corrections", unit="set", disable=not progress):
-        r = fit_corrections(fitted, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i],
-                            exp.dofs, generations=settings.correction_generations, sweeps=settings.correction_sweeps,
-                            seed=settings.seed + i,
-                            start=correction_start(exp, fitted, i))
-        corr_err.append(np.mean(np.abs(r.coordinates - exp.reference[i]), axis=0))
-        corr_size.append(np.mean(np.abs(r.correction), axis=0))
-        q_corrected.append(r.coordinates)
-    corr_seconds = time.perf_counter() - t1
     k = min(settings.overlay_sets, len(test))
+    corrected = correct_sets(exp, fitted, test, settings=settings, force_start=True, progress=progress,
+                             cache=out / "corrections.npz", refit=refit, keep=k)
+    corr_seconds = time.perf_counter() - t1
+    paper_test = test[: settings.paper_correction_sets] if settings.paper_correction_sets else test
+    paper_corrected = correct_sets(exp, paper_fitted, paper_test, settings=settings, force_start=False,
+                                   progress=progress, cache=out / "corrections_paper.npz", refit=refit, keep=k)
+    errors["corrected"] = corrected[0]
+    # NaN rows for test sets the paper's pipeline was not corrected on (a smaller budget)
+    errors["paper_corrected"] = np.full_like(corrected[0], np.nan)
+    errors["paper_corrected"][: len(paper_test)] = paper_corrected[0]
+    fresh = fresh_set_errors(Path(data_dir), model_dir, stage_models, options=options)
+    # every stage's error off the test sets too: does a fit generalise, or only fit its training sets?
+    split_errors = {split: {name: float(np.nanmean(joint_mae(exp, m, sets)[0])) for name, m in stage_models.items()}
+                    for split, sets in (("train", train), ("validation", held)) if sets}
+    split_errors["test"] = {name: float(np.nanmean(errors[name])) for name in stage_models}
+    split_errors.update({"fresh": {k: float(np.nanmean(v)) for k, v in fresh.items()}} if fresh else {})
     np.savez_compressed(
         out / "results.npz", dofs=np.array(exp.dofs), muscles=np.array(exp.muscles), test=np.array(test),
-        times=exp.dataset.times, err_converted=err_converted, err_forces=err_forces, err_fitted=err_fitted,
-        err_corrected=np.array(corr_err), correction_mae=np.array(corr_size), overlay_sets=np.array(test[:k]),
-        overlay_opensim=exp.reference[test[:k]], overlay_converted=q_converted[:k], overlay_forces=q_forces[:k],
-        overlay_fitted=q_fitted[:k], overlay_corrected=np.array(q_corrected[:k]))
-    stages = {"converted": err_converted, "force_fitted": err_forces, "fitted": err_fitted,
-              "corrected": np.array(corr_err)}
+        times=exp.dataset.times, err_converted=errors["converted"], err_forces=errors["force_fitted"],
+        err_fitted=errors["fitted"], err_corrected=corrected[0], correction_mae=corrected[1],
+        err_paper_fitted=errors["paper_fitted"], err_paper_corrected=paper_corrected[0],
+        correction_mae_paper=paper_corrected[1], paper_corrected_sets=np.array(paper_test),
+        overlay_sets=np.array(test[:k]),
+        overlay_opensim=exp.reference[test[:k]], overlay_converted=trajectories["converted"][:k],
+        overlay_forces=trajectories["force_fitted"][:k], overlay_fitted=trajectories["fitted"][:k],
+        overlay_corrected=corrected[2], overlay_paper_fitted=trajectories["paper_fitted"][:k],
+        overlay_paper_corrected=paper_corrected[2],
+        **{f"fresh_err_{name}": e for name, e in fresh.items()})
     summary = {
         "settings": settings.__dict__, "n_train": len(train), "n_test": len(test),
-        "mean_error_rad": {k: float(np.nanmean(v)) for k, v in stages.items()},
-        "per_joint_error_rad": {d: {k: float(np.nanmean(v[:, j])) for k, v in stages.items()}
+        "mean_error_rad": {k: float(np.nanmean(v)) for k, v in errors.items()},
+        "per_joint_error_rad": {d: {k: float(np.nanmean(v[:, j])) for k, v in errors.items()}
                                 for j, d in enumerate(exp.dofs)},
-        "diverged_test_sets": {k: int(np.isnan(v).any(axis=1).sum()) for k, v in stages.items() if k != "corrected"},
-        "mean_abs_correction": float(np.mean(corr_size)),
+        "diverged_test_sets": {k: int(np.isnan(v).any(axis=1).sum()) for k, v in errors.items()
+                               if "corrected" not in k},
+        "split_error_rad": split_errors,
+        "mean_abs_correction": float(np.mean(corrected[1])),
+        "mean_abs_correction_paper": float(np.mean(paper_corrected[1])),
+        "paper_corrected_sets": len(paper_test),
+        "corrected_on_paper_sets": float(np.mean(corrected[0][: len(paper_test)])),
+        "mean_abs_correction_on_paper_sets": float(np.mean(corrected[1][: len(paper_test)])),
+        "fresh_sets": {"n": int(next(iter(fresh.values())).shape[0]) if fresh else 0,
+                       "mean_error_rad": {k: float(np.nanmean(v)) for k, v in fresh.items()},
+                       "per_joint_error_rad": {d: {k: float(np.nanmean(v[:, j])) for k, v in fresh.items()}
+                                               for j, d in enumerate(exp.dofs)} if fresh else {}},
         "muscle_forces": forces.summary(),
         "fitted_xml": str(fitted_xml),
-        "fit": {"cost0": fit.cost0, "cost": fit.cost, "evaluations": fit.evaluations, "wall_time_s": fit.wall_time,
-                "generations": len(fit.history), "validation_cost0": fit.validation_cost0,
-                "validation_cost": fit.validation_cost,
-                "best_training_cost": fit.settings.get("best_training_cost", fit.cost)},
-        "seconds": {"muscle_forces": force_seconds, "fit": fit_seconds, "corrections": corr_seconds},
+        "fit": fit_summary(fit),
+        "paper_fit": fit_summary(paper_fit),
+        "seconds": {"muscle_forces": force_seconds, "fit": fit_seconds, "paper_fit": paper_seconds,
+                    "corrections": corr_seconds},
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def fit_summary(fit: FitResult) -> dict:
+    """The numbers of a CMA-ES fit the summary keeps (costs in rad²)."""
+    return {"cost0": fit.cost0, "cost": fit.cost, "evaluations": fit.evaluations, "wall_time_s": fit.wall_time,
+            "generations": len(fit.history), "validation_cost0": fit.validation_cost0,
+            "validation_cost": fit.validation_cost,
+            "best_training_cost": fit.settings.get("best_training_cost", fit.cost),
+            "early_stopping": fit.settings.get("early_stopping", True)}
+
+
+def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, settings: Settings = FULL,
+                 force_start: bool = True, progress: bool = True, cache: str | os.PathLike[str] | None = None,
+                 refit: bool = False, keep: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Corrective controls (:func:`o2m.corrections.fit_corrections`) for each of ``sets``.
+
+    ``force_start``: start each from the force-matching correction when it is better (o2m's
+    addition) instead of from no correction (the paper). Returns the joint error per set and DoF
+    (n_sets, n_dofs) rad, the mean absolute correction per set and muscle (n_sets, n_muscles),
+    and the corrected trajectories of the first ``keep`` sets (all if None), (keep, T, n_dofs).
+    With ``cache`` (an .npz file) they are
+    loaded from there when it holds the corrections of this very model (every field of the
+    compiled model hashed), sets and budget, unless ``refit``; otherwise computed and saved there.
+    """
+    from tqdm.auto import tqdm
+
+    from o2m.paper.corrections import fit_corrections
+
+    key = correction_key(model, sets, settings, force_start, keep)
+    if cache is not None and Path(cache).exists() and not refit:
+        with np.load(cache) as z:
+            if str(z["key"]) == key:
+                return z["err"], z["size"], z["q"]
+    err, size, q = [], [], []
+    for i in tqdm(sets, desc="corrections", unit="set", disable=not progress):
+        r = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i],
+                            exp.dofs, generations=settings.correction_generations, sweeps=settings.correction_sweeps,
+                            seed=settings.seed + i, start=correction_start(exp, model, i) if force_start else None)
+        err.append(np.mean(np.abs(r.coordinates - exp.reference[i]), axis=0))
+        size.append(np.mean(np.abs(r.correction), axis=0))
+        q.append(r.coordinates)
+    out = np.array(err), np.array(size), np.array(q[:keep])
+    if cache is not None:
+        np.savez_compressed(cache, key=key, err=out[0], size=out[1], q=out[2].astype(np.float32))
+    return out
+
+
+def correction_key(model: mujoco.MjModel, sets: list[int], settings: Settings, force_start: bool,
+                   keep: int | None = None) -> str:
+    """What a set of corrections depends on: the compiled model (sha256 of its binary), the sets and the budget."""
+    import hashlib
+
+    buf = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buf)
+    budget = (list(map(int, sets)), settings.correction_generations, settings.correction_sweeps, settings.seed,
+              force_start, keep)
+    return hashlib.sha256(buf.tobytes()).hexdigest() + json.dumps(budget)
+
+
+def fresh_set_errors(data_dir: Path, model_dir: str | os.PathLike[str], stage_models: dict[str, mujoco.MjModel],
+                     *, options: ConvertOptions = ConvertOptions()) -> dict[str, np.ndarray]:  # noqa: B008
+    """Joint error (n_sets, n_dofs) rad of each model on the fresh sets of ``<data_dir>/FRESH_DIR``
+    (excitations drawn with another seed, never fitted on), if that dataset is there; else {}."""
+    fresh_dir = data_dir / FRESH_DIR
+    if not (fresh_dir / "opensim.npz").exists():
+        return {}
+    exp = load_experiment(fresh_dir, model_dir, options=options)
+    sets = [int(i) for i in np.flatnonzero(exp.dataset.ok)]
+    return {name: joint_mae(exp, m, sets)[0] for name, m in stage_models.items()}
+
+
+def fit_parameters(exp: Experiment, model: mujoco.MjModel, train: list[int], held: list[int],
+                   fit_file: str | os.PathLike[str], *, settings: Settings = FULL, refit: bool = False,
+                   progress: bool = True, executor=None, early_stopping: bool = True):
+    """The paper's CMA-ES fit (:func:`o2m.fitting.fit_cma`) of ``model`` on the ``train`` sets, scored on
+    the ``held`` validation sets; loaded from ``fit_file`` unless ``refit`` (then saved there, with a
+    checkpoint beside it). ``early_stopping``: choose the candidate by the validation sets (o2m) or
+    take the best training candidate (the paper). Returns the parameter space and the fit."""
+    fit_file = Path(fit_file)
+    space = parameter_space(model, exp.dofs, exp.muscles)
+    if fit_file.exists() and not refit:
+        fit = load_fit(fit_file)
+        if fit.names != space.names:
+            raise ValueError(f"{fit_file} has other parameters than this model; rerun with refit=True")
+        return space, fit
+    objective = TrajectoryObjective(model, space, exp.init[train], exp.controls[train], exp.reference[train],
+                                    exp.dofs, executor=executor)
+    validation = TrajectoryObjective(model, space, exp.init[held], exp.controls[held], exp.reference[held],
+                                     exp.dofs) if held else None
+    ckpt = fit_file.with_name(fit_file.stem + "_checkpoint.pkl")
+    if ckpt.exists() and not checkpoint_matches(ckpt, space, settings.seed):
+        print(f"{ckpt}: left by a fit from another start (an earlier run); starting afresh")
+        ckpt.unlink()
+    fit = fit_cma(objective, seed=settings.seed, generations=settings.generations, popsize=settings.popsize,
+                  checkpoint=ckpt, progress=progress, validation=validation, early_stopping=early_stopping,
+                  settings={"train_sets": list(map(int, train)), "validation_sets": list(map(int, held)),
+                            "xml": exp.xml.name})
+    save_fit(fit_file, fit, space)
+    return space, fit
 
 
 def correction_start(exp: Experiment, model: mujoco.MjModel, i: int) -> np.ndarray | None:

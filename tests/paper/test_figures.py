@@ -19,7 +19,9 @@ def test_figures_from_stored_results(tmp_path):
              err_converted=rng.random((2, 2)), err_fitted=rng.random((2, 2)) / 2, err_corrected=rng.random((2, 2)) / 4,
              correction_mae=rng.random((2, 3)) / 10, overlay_sets=[3], overlay_opensim=rng.random((1, 50, 2)),
              overlay_converted=rng.random((1, 50, 2)), overlay_fitted=rng.random((1, 50, 2)),
-             overlay_corrected=rng.random((1, 50, 2)))
+             overlay_corrected=rng.random((1, 50, 2)), err_paper_fitted=rng.random((2, 2)),
+             err_paper_corrected=rng.random((1, 2)), paper_corrected_sets=[3],
+             overlay_paper_fitted=rng.random((1, 50, 2)), overlay_paper_corrected=np.zeros((0, 50, 2)))
     (tmp_path / "speed.json").write_text(json.dumps({"opensim_median_s": 15.5, "mujoco_median_s": 0.025,
                                                      "ratio": 620.0}))
     written = make_figures(res, tmp_path / "figs")

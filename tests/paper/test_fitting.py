@@ -220,3 +220,18 @@ def test_objective_through_an_executor_equals_the_local_one():
         remote = TrajectoryObjective(model, space, init, ctrl, ref, ["swing"], executor=client.get_executor())
         np.testing.assert_array_equal(remote(xs), local)
         assert remote.evaluations == 3
+
+
+def test_without_early_stopping_the_best_training_candidate_is_kept_and_scored(tmp_path):
+    """The paper's way: the same fit as above, not early-stopped, moves to the training sets'
+    damping, and its validation cost says how much that costs the held-out sets."""
+    model, init, ctrl, ref = _setup(0.5, 0.05)
+    _, v_init, v_ctrl, v_ref = _setup(0.05, 0.05, n=2)
+    space = parameter_space(model, ["swing"], [])
+    train = TrajectoryObjective(model, space, init, ctrl, ref, ["swing"], penalty=0.0)
+    held = TrajectoryObjective(model, space, v_init, v_ctrl, v_ref, ["swing"], penalty=0.0)
+    fit = fit_cma(train, seed=0, sigma0=0.2, generations=10, progress=False, validation=held, early_stopping=False)
+    assert fit.cost == fit.settings["best_training_cost"] < 0.1 * fit.cost0
+    assert fit.validation_cost == pytest.approx(float(held(fit.x[None])[0]))
+    assert fit.validation_cost > 1e3 * max(fit.validation_cost0, 1e-20)
+    assert fit.settings["early_stopping"] is False
