@@ -104,7 +104,8 @@ def test_normalise_makes_a_run_reproducible():
     image.save(raw, format="PNG")
     png = base64.b64encode(raw.getvalue()).decode()
     nb = nbformat.v4.new_notebook(metadata={"language_info": {"name": "python", "version": "3.11.7"}})
-    nb.cells = [nbformat.v4.new_code_cell("print(DATA)", execution_count=7, metadata={"execution": {"iopub.status.idle": "2026-12-03T09:00:00Z"}},
+    timing = {"execution": {"iopub.status.idle": "2026-12-03T09:00:00Z"}}
+    nb.cells = [nbformat.v4.new_code_cell("print(DATA)", execution_count=7, metadata=timing,
                                           outputs=[nbformat.v4.new_output("stream", text="/repo/data /c/x.osim\n")]),
                 nbformat.v4.new_code_cell("plt.show()", execution_count=9,
                                           outputs=[nbformat.v4.new_output("display_data", data={"image/png": png})])]
