@@ -313,3 +313,14 @@ def test_fit_couplings_refuses_a_fit_that_is_not_finite():
     couplings._check_finite(fit)
     with pytest.raises(FitError, match="not finite"):
         couplings._check_finite(replace(fit, inners=fit.inners * np.nan))
+
+
+def test_carrier_groups_are_planned_in_chunks_that_keep_a_body_together():
+    from o2m.convert.coupling_plan import CARRIER_CHUNK, chunks_by_key
+
+    assert chunks_by_key(["a", "b", "a"], size=8) == [[0, 1, 2]]  # small groups: one chunk, as before
+    keys = [k // 2 for k in range(2 * CARRIER_CHUNK + 3)]  # two axes per carrier body
+    chunks = chunks_by_key(keys)
+    assert sorted(i for c in chunks for i in c) == list(range(len(keys)))
+    assert all(len(c) <= CARRIER_CHUNK for c in chunks) and len(chunks) == 3
+    assert all(len({keys[i] for i in c} & {keys[i] for i in d}) == 0 for c in chunks for d in chunks if c is not d)
