@@ -5,9 +5,10 @@
 
 A synthetic model is Gait10dof18musc (a full-body lower-limb model: both legs, wrap objects,
 ConditionalPathPoints and MovingPathPoints) with its 18 muscles replaced by N copies, taken in
-turn, each renamed and with its fixed path-point locations moved by seeded noise (sd 2 mm), so
-the copies keep the full-body model's proportions of moving points, conditional points and wraps
-but are distinct paths (nothing can be reused from an identical one).
+turn, each renamed, with its fixed path-point locations moved by seeded noise (sd 2 mm) and its
+splines (a moving point's coordinates) scaled by 1 + N(0, 0.05), so the copies keep the
+full-body model's proportions of moving points, conditional points and wraps but are distinct
+paths (no fit can be reused from an identical one: o2m caches coupling fits by value).
 
 Each conversion runs in a fresh process (``spawn``) into a fresh folder. The table gives the
 seconds, the seconds per path, and the marginal seconds per path between consecutive sizes; the
@@ -66,6 +67,10 @@ def synthetic_model(n_muscles: int, out: Path, *, seed: int = 0, noise: float = 
             loc.text = " ".join(f"{v:.6f}" for v in values)
         for point in copy.iter("MovingPathPoint", "PathWrap"):
             point.set("name", point.get("name") + suffix)
+        for values in copy.iter("y"):  # a moving point's spline values, scaled by 1 + N(0, 0.05)
+            if values.getparent().tag == "SimmSpline":
+                scaled = np.array(values.text.split(), float) * (1.0 + rng.normal(0.0, 0.05))
+                values.text = " ".join(f"{v:.8g}" for v in scaled)
         objects.append(copy)
     out.parent.mkdir(parents=True, exist_ok=True)
     tree.write(str(out), xml_declaration=True, encoding="UTF-8")
