@@ -179,10 +179,14 @@ def cmd_figures(a: argparse.Namespace) -> int:
 def cmd_speed(a: argparse.Namespace) -> int:
     import json
 
+    from o2m.osim.runtime import opensim_log
     from o2m.paper.speed import measure_speed
 
-    speed = measure_speed(a.data, n_sets=a.sets)
+    Path(a.opensim_log).unlink(missing_ok=True)
+    with opensim_log(a.opensim_log) as log_file:
+        speed = measure_speed(a.data, n_sets=a.sets)
     print(json.dumps({k: v for k, v in speed.items() if not isinstance(v, list)}, indent=1))
+    print(f"OpenSim's log: {log_file}")
     if a.save:
         Path(a.save).write_text(json.dumps(speed, indent=1) + "\n")
     return 0
@@ -290,6 +294,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--data", default="data/mobl_arms")
     sp.add_argument("--sets", type=int, default=5)
     sp.add_argument("--save", default=None, help="write the measurements to this JSON file")
+    sp.add_argument("--opensim-log", default="out/opensim-speed.log", help="OpenSim's log (default: %(default)s)")
     sp.set_defaults(func=cmd_speed)
     rp = sub.add_parser("replay", help="replay an OpenSim .mot/.sto motion on a converted model (meshcat HTML)")
     rp.add_argument("xml", help="the converted model (.xml)")

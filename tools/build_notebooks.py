@@ -1,19 +1,34 @@
-"""Write the workbook's notebooks (``notebooks/*.ipynb``) from the cell lists below.
+"""Write the workbook's notebooks (``notebooks/*.ipynb``) from the cell lists below, and run them.
 
 The notebooks are thin: every computation is an ``o2m`` call. Editing them here keeps them
-reviewable as code; run ``python tools/build_notebooks.py`` and commit the .ipynb files (stored
-without outputs). ``tests/integration/test_notebooks.py`` checks they are what this script
-writes and executes them in quick mode.
+reviewable as code. The committed notebooks carry the outputs of a full run:
+
+    python tools/build_notebooks.py                # rewrite the sources; unchanged cells keep outputs
+    python tools/build_notebooks.py --execute      # rewrite and run them all (full mode, stored data)
+    python tools/build_notebooks.py --execute 04   # only the notebooks whose name starts with 04
+
+Outputs are normalised so that a rerun leaves git clean unless a result changed: no timing
+metadata, execution counts 1, 2, ..., PNG images re-encoded with a fixed palette, the repository
+and cache folders written as relative paths. ``tests/integration/test_notebooks.py`` checks the
+sources are what this script writes, the outputs are clean and small, and the notebooks still
+run in quick mode.
 """
 
 from __future__ import annotations
 
+import argparse
+import base64
+import io
+import os
+import sys
+import time
 from pathlib import Path
 
 import nbformat
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
 
-HERE = Path(__file__).resolve().parents[1] / "notebooks"
+ROOT = Path(__file__).resolve().parents[1]
+HERE = ROOT / "notebooks"
 
 PARAMETERS = '''# Parameters. Quick mode (set O2M_QUICK=1, as CI does) uses small budgets and finishes in a
 # minute or two; full mode reproduces the stored results.
@@ -494,23 +509,159 @@ for p in written:
 ]
 
 
+KERNELSPEC = {"name": "python3", "display_name": "Python 3", "language": "python"}
+INLINE_BACKEND = "module://matplotlib_inline.backend_inline"
+"""Matplotlib backend of the executing kernel: a caller's ``MPLBACKEND=Agg`` would leave no figures."""
+KERNEL_WARNINGS = "ignore:IProgress not found:Warning"
+"""Python warning filter of the executing kernel: tqdm's notice that ipywidgets is missing (it then
+draws text bars) is about the machine, not the notebook."""
+MAX_IMAGE_WIDTH = 1400
+"""Widest stored image (pixels); wider ones (the paper's 150-dpi figures) are scaled down."""
+
+
+def _fresh_notebook(name: str, cells: list) -> nbformat.NotebookNode:
+    """The notebook ``name`` from its cell list, without outputs, every cell with a stable id."""
+    cells = [nbformat.from_dict(dict(cell)) for cell in cells]  # copies: NOTEBOOKS stays untouched
+    for k, cell in enumerate(cells):
+        cell.id = f"{Path(name).stem[:2]}-{k:02d}"  # stable ids: a rebuild changes only what changed
+    return new_notebook(cells=cells, metadata={"kernelspec": dict(KERNELSPEC)})
+
+
+def _keep_outputs(nb: nbformat.NotebookNode, previous: nbformat.NotebookNode) -> None:
+    """Copy into ``nb`` the outputs of ``previous``'s code cells whose id and source are unchanged."""
+    old = {c.id: c for c in previous.cells if c.cell_type == "code"}
+    for cell in nb.cells:
+        match = old.get(cell.id)
+        if cell.cell_type == "code" and match is not None and match.source == cell.source:
+            cell.outputs, cell.execution_count = match.outputs, match.execution_count
+
+
 def build(folder: Path = HERE) -> list[Path]:
-    """Write every notebook into ``folder`` (without outputs); returns the files written."""
+    """Write every notebook into ``folder``; returns the files written.
+
+    A code cell whose source is unchanged keeps the outputs of the notebook already in ``folder``
+    (a changed cell loses them, and the execution counts then have a gap until ``--execute``).
+    """
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for name, cells in NOTEBOOKS.items():
-        for k, cell in enumerate(cells):
-            cell.id = f"{Path(name).stem[:2]}-{k:02d}"  # stable ids: a rebuild changes only what changed
-        nb = new_notebook(cells=cells, metadata={"kernelspec": {"name": "python3", "display_name": "Python 3",
-                                                                "language": "python"}})
-        nbformat.write(nb, folder / name)
-        written.append(folder / name)
+        nb, target = _fresh_notebook(name, cells), folder / name
+        if target.exists():
+            _keep_outputs(nb, nbformat.read(target, as_version=4))
+        nbformat.write(nb, target)
+        written.append(target)
     return written
 
 
-def main() -> None:
-    for path in build():
-        print("wrote", path)
+def path_replacements(root: Path = ROOT, cache: str | None = None) -> dict[str, str]:
+    """Machine paths to hide in outputs -> what to write instead, longest first.
+
+    ``root`` (the repository) becomes ``.``, ``cache`` (o2m's model cache, if given) ``$O2M_CACHE``,
+    Python's installation ``$PYTHON`` and the home folder ``~``; both the given and the resolved
+    spelling of each are replaced.
+    """
+    pairs = {}
+    for path, label in ((root, "."), (cache, "$O2M_CACHE"), (sys.prefix, "$PYTHON"), (sys.base_prefix, "$PYTHON"),
+                        (Path.home(), "~")):
+        if path:
+            for spelling in {str(Path(path)), str(Path(path).resolve())}:
+                pairs.setdefault(spelling, label)
+    return dict(sorted(pairs.items(), key=lambda kv: -len(kv[0])))
+
+
+def _small_png(b64: str) -> str:
+    """A base64 PNG re-encoded on white with a 256-colour palette (a third of matplotlib's size),
+    at most MAX_IMAGE_WIDTH pixels wide, without metadata; deterministic for a given image."""
+    from PIL import Image
+
+    image = Image.open(io.BytesIO(base64.b64decode(b64)))
+    if image.mode == "P" and image.width <= MAX_IMAGE_WIDTH:
+        return b64  # already normalised: a second pass changes nothing
+    image = image.convert("RGBA")
+    if image.width > MAX_IMAGE_WIDTH:
+        height = round(image.height * MAX_IMAGE_WIDTH / image.width)
+        image = image.resize((MAX_IMAGE_WIDTH, height), Image.Resampling.LANCZOS)
+    white = Image.new("RGBA", image.size, (255, 255, 255, 255))
+    rgb = Image.alpha_composite(white, image).convert("RGB")
+    paletted = rgb.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    buffer = io.BytesIO()
+    paletted.save(buffer, format="PNG", optimize=True)
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def _replace_paths(text: str | list, replacements: dict[str, str]) -> str:
+    text = "".join(text) if isinstance(text, list) else text
+    for path, label in replacements.items():
+        text = text.replace(path, label)
+    return text
+
+
+def normalise(nb: nbformat.NotebookNode, replacements: dict[str, str]) -> None:
+    """Make an executed notebook reproducible in place: no timing or kernel-version metadata,
+    execution counts 1, 2, ... in cell order, small PNGs, machine paths replaced."""
+    nb.metadata = nbformat.from_dict({"kernelspec": dict(KERNELSPEC)})
+    count = 0
+    for cell in nb.cells:
+        cell.metadata.pop("execution", None)
+        if cell.cell_type != "code":
+            continue
+        count += 1
+        cell.execution_count = count
+        for output in cell.outputs:
+            if output.output_type == "execute_result":
+                output.execution_count = count
+            if "text" in output:
+                output.text = _replace_paths(output.text, replacements)
+            for mime, value in output.get("data", {}).items():
+                if mime == "image/png":
+                    output.data[mime] = _small_png(value)
+                elif mime.startswith("text/"):
+                    output.data[mime] = _replace_paths(value, replacements)
+
+
+def execute(path: Path, *, quick: bool, timeout: float = 7200.0) -> float:
+    """Run the notebook at ``path`` top to bottom on a fresh kernel in its folder and write it back
+    normalised. ``quick`` sets ``O2M_QUICK`` for the kernel. Returns the wall time (s).
+    Raises ``nbclient.exceptions.CellExecutionError`` (the notebook file is then left as it was)."""
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(path, as_version=4)
+    env = dict(os.environ, O2M_QUICK="1" if quick else "0", MPLBACKEND=INLINE_BACKEND, PYTHONWARNINGS=KERNEL_WARNINGS)
+    client = NotebookClient(nb, timeout=timeout, kernel_name=KERNELSPEC["name"],
+                            resources={"metadata": {"path": str(path.parent)}})
+    start = time.perf_counter()
+    client.execute(env=env)
+    seconds = time.perf_counter() - start
+    normalise(nb, path_replacements(ROOT, os.environ.get("O2M_CACHE")))
+    nbformat.write(nb, path)
+    return seconds
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description="Write (and with --execute, run) the notebooks in notebooks/.")
+    ap.add_argument("--execute", nargs="*", metavar="PREFIX",
+                    help="run the notebooks (all, or those whose name starts with a PREFIX) and store outputs")
+    ap.add_argument("--quick", action="store_true", help="run in quick mode (to try; commit full-mode outputs)")
+    ap.add_argument("--timeout", type=float, default=7200.0, help="seconds allowed per cell")
+    args = ap.parse_args(argv)
+    from nbclient.exceptions import CellExecutionError
+
+    written = build()
+    for path in written:
+        print("wrote", path.relative_to(ROOT))
+    if args.execute is None:
+        return
+    chosen = [p for p in written if not args.execute or any(p.name.startswith(x) for x in args.execute)]
+    total = 0.0
+    for path in chosen:
+        try:
+            seconds = execute(path, quick=args.quick, timeout=args.timeout)
+        except CellExecutionError as exc:
+            sys.exit(f"{path.name}: a cell failed; the notebook was not rewritten.\n{exc}")
+        total += seconds
+        size = path.stat().st_size / 1e3
+        print(f"executed {path.name} ({'quick' if args.quick else 'full'} mode) in {seconds:.0f} s, {size:.0f} kB")
+    print(f"{len(chosen)} notebooks in {total:.0f} s")
 
 
 if __name__ == "__main__":

@@ -56,6 +56,7 @@ from o2m.convert.coupling_plan import (
     ExtraJoint,
     PlannedAxis,
     added_inertia,
+    chunks_by_key,
     plan_group,
     plan_skeleton,
     planned_axes,
@@ -345,23 +346,31 @@ class MjcfBuilder:
 
     def plan_extra_couplings(self, group: list[CoupledAxis], keys: list[object], room: dict[object, int], *,
                              targets: list[float], slope_targets: list[float] | None,
-                             armature: float) -> CouplingFit:
+                             armature: float) -> list[CouplingFit]:
         """Plan couplings beyond a quartic for axes that callers outside this class add (path-point
         carriers): the axes ``group`` of one coordinate, all equally heavy, axis i's extra joints
         counted against ``room[keys[i]]``, fitted to ``targets`` and ``slope_targets`` as
-        :func:`~o2m.convert.coupling_plan.plan_group` does. Each joint then follows its plan when
+        :func:`~o2m.convert.coupling_plan.plan_group` does, in chunks of at most
+        :data:`~o2m.convert.coupling_plan.CARRIER_CHUNK` axes (:func:`~o2m.convert.coupling_plan.chunks_by_key`;
+        one plan's cost grows with the cube of its axes). Each joint then follows its plan when
         :meth:`couple` is called with ``high_order=True`` after :meth:`register_joint`; every extra
-        joint gets ``armature``."""
+        joint gets ``armature``. Returns each chunk's fit."""
         base = group[0].base
         lo, hi = self.coupling_range(base)
-        try:
-            best = plan_group(group, keys, room, lo, hi, self.ref[base], [1.0] * len(group), targets, slope_targets,
-                              cheaper_too=True, cache=self.fit_cache)
-        except FitError as exc:
-            raise self.doc.error(self.skel.coordinates[base].element,
-                                 f"moves path points MuJoCo's joint equalities cannot follow: {exc}") from None
-        self._planned.update(planned_axes(best, group, lo, hi, armature))
-        return best
+        fits = []
+        for chunk in chunks_by_key(keys):
+            axes = [group[i] for i in chunk]
+            try:
+                best = plan_group(axes, [keys[i] for i in chunk], room, lo, hi, self.ref[base], [1.0] * len(chunk),
+                                  [targets[i] for i in chunk],
+                                  None if slope_targets is None else [slope_targets[i] for i in chunk],
+                                  cheaper_too=True, cache=self.fit_cache)
+            except FitError as exc:
+                raise self.doc.error(self.skel.coordinates[base].element,
+                                     f"moves path points MuJoCo's joint equalities cannot follow: {exc}") from None
+            self._planned.update(planned_axes(best, axes, lo, hi, armature))
+            fits.append(best)
+        return fits
 
     def register_joint(self, name: str, body: mujoco.MjsBody, jtype: mujoco.mjtJoint, axis: np.ndarray,
                        pos: np.ndarray) -> None:

@@ -1,20 +1,27 @@
 """The one place o2m imports OpenSim: the module, model loading, and casts every caller needs.
 
 OpenSim is imported on first use (it takes about a second and is not needed to read a
-document or to simulate in MuJoCo). Its log goes at ``error`` level: o2m reports what matters
-itself, and OpenSim's warnings (massless bodies, locked coordinates) would flood a terminal.
+document or to simulate in MuJoCo). Its log goes at ``error`` level and to no file: o2m reports
+what matters itself, and OpenSim's warnings (massless bodies, locked coordinates) would flood a
+terminal. A program that wants OpenSim's log (``python -m o2m paper``, the speed step, the
+simulation workers) runs the OpenSim work inside :func:`opensim_log`, which sends it to a file.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import functools
 import math
 import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 from o2m.errors import ModelFileError
 
-__all__ = ["TRANSLATIONAL", "geometry_path", "load_model", "opensim", "path_force", "sample_bounds"]
+__all__ = ["TRANSLATIONAL", "geometry_path", "load_model", "opensim", "opensim_log", "path_force", "sample_bounds"]
 
 TRANSLATIONAL = 2
 """``opensim.Coordinate.Translational``, the motion type of a coordinate in metres."""
@@ -22,11 +29,66 @@ TRANSLATIONAL = 2
 
 @functools.cache
 def opensim() -> Any:
-    """The ``opensim`` module (4.6), imported once, its log at ``error`` level."""
+    """The ``opensim`` module (4.6), imported once, its log at ``error`` level and to no file
+    (OpenSim would otherwise write ``opensim.log`` into the current folder)."""
     import opensim as module
 
     module.Logger.setLevelString("error")
+    module.Logger.removeFileSink()
     return module
+
+
+def _flush_c_streams() -> None:
+    """Flush C's stdio buffers (OpenSim's console sink writes through them)."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None).fflush(None)
+
+
+def _fileno(stream: Any) -> int | None:
+    try:
+        return stream.fileno()
+    except (AttributeError, OSError, ValueError):  # Jupyter's and pytest's streams have no descriptor
+        return None
+
+
+@contextlib.contextmanager
+def opensim_log(log_file: str | os.PathLike[str], level: str = "info") -> Iterator[Path]:
+    """Within the block, OpenSim logs at ``level`` into ``log_file`` (appended), not the terminal.
+
+    OpenSim 4.6 has no call that drops its console sink, so the block points this process's
+    file descriptors 1 and 2 at the log file (other C-level output, MuJoCo's included, goes there
+    too). Python's ``sys.stdout``/``sys.stderr`` keep writing where they wrote before, so prints
+    and progress bars still reach the terminal. Everything is restored on exit. Yields the path.
+    """
+    osim = opensim()
+    path = Path(log_file)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    names = {1: "stdout", 2: "stderr"}
+    for name in names.values():
+        getattr(sys, name).flush()
+    _flush_c_streams()
+    saved = {fd: os.dup(fd) for fd in names}
+    python_streams = {name: getattr(sys, name) for fd, name in names.items() if _fileno(getattr(sys, name)) == fd}
+    log_fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    try:
+        for name, stream in python_streams.items():  # Python keeps the terminal, on a copy of its descriptor
+            fd = saved[1 if name == "stdout" else 2]
+            setattr(sys, name, open(os.dup(fd), "w", buffering=1, encoding=stream.encoding,  # noqa: SIM115
+                                    errors=stream.errors))
+        for fd in names:
+            os.dup2(log_fd, fd)
+        osim.Logger.setLevelString(level)
+        yield path
+    finally:
+        osim.Logger.setLevelString("error")
+        _flush_c_streams()
+        for fd in names:
+            os.dup2(saved[fd], fd)
+            os.close(saved[fd])
+        os.close(log_fd)
+        for name, stream in python_streams.items():
+            getattr(sys, name).close()
+            setattr(sys, name, stream)
 
 
 def load_model(osim_path: str | os.PathLike, assembly_accuracy: float | None = None) -> tuple[Any, Any]:

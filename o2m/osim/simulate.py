@@ -20,6 +20,7 @@ MuJoCo's muscles to).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import os
 import subprocess
 import sys
@@ -301,22 +302,29 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
 
 
 def _worker_main(argv: list[str]) -> int:
-    """``python -m o2m.osim.simulate IN.npz OUT.npz``: run :func:`simulate` on a job file."""
+    """``python -m o2m.osim.simulate IN.npz OUT.npz``: run :func:`simulate` on a job file
+    (inside :func:`~o2m.osim.runtime.opensim_log` when the job names a log file)."""
     job, out = argv
     with np.load(job, allow_pickle=False) as z:
         init = dict(zip([str(s) for s in z["init_names"]], z["init_values"].tolist(), strict=False))
         settings = IntegratorSettings(str(z["method"]), float(z["accuracy"]), float(z["min_step"]),
                                       float(z["max_step"]))
-        run = simulate(str(z["osim"]), z["times"], z["excitations"], [str(s) for s in z["muscles"]],
-                       initial_state=init, settings=settings, wall_limit=float(z["wall_limit"]))
+        log_file = str(z["opensim_log"])
+        with runtime.opensim_log(log_file) if log_file else contextlib.nullcontext():
+            run = simulate(str(z["osim"]), z["times"], z["excitations"], [str(s) for s in z["muscles"]],
+                           initial_state=init, settings=settings, wall_limit=float(z["wall_limit"]))
     run.to_npz(out)
     return 0
 
 
 def run_isolated(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: np.ndarray,
                  muscles: Sequence[str], *, initial_state: Mapping[str, float] | None = None,
-                 settings: IntegratorSettings = IntegratorSettings(), timeout: float = 600.0) -> OpenSimRun:
+                 settings: IntegratorSettings = IntegratorSettings(), timeout: float = 600.0,
+                 opensim_log: str | os.PathLike[str] | None = None) -> OpenSimRun:
     """:func:`simulate` in a fresh Python process, killed after ``timeout`` wall-clock seconds.
+
+    ``opensim_log``: a file the process appends OpenSim's log to (info level); None keeps it at
+    error level, in the captured output.
 
     Any way the process can end (a crash, a kill, an exception) comes back as an
     :class:`OpenSimRun` with a status and reason; this function itself does not raise for
@@ -330,7 +338,8 @@ def run_isolated(osim_path: str | os.PathLike[str], times: np.ndarray, excitatio
                  excitations=np.asarray(excitations, float), muscles=np.array(list(muscles)),
                  init_names=np.array(list(init), dtype=str), init_values=np.array(list(init.values()), float),
                  method=settings.method, accuracy=settings.accuracy, min_step=settings.min_step,
-                 max_step=settings.max_step, wall_limit=float(timeout))
+                 max_step=settings.max_step, wall_limit=float(timeout),
+                 opensim_log=str(Path(opensim_log).resolve()) if opensim_log else "")
         try:
             proc = subprocess.run([sys.executable, "-m", "o2m.osim.simulate", str(job), str(out)], cwd=tmp,
                                   capture_output=True, text=True, timeout=timeout + 30.0)
@@ -348,12 +357,13 @@ def run_many(osim_path: str | os.PathLike[str], times: np.ndarray, excitation_se
              muscles: Sequence[str], *, initial_state: Mapping[str, float] | None = None,
              settings: IntegratorSettings = IntegratorSettings(), timeout: float = 600.0,
              executor: cf.Executor | None = None, max_workers: int | None = None,
-             progress: bool = True) -> list[OpenSimRun]:
+             progress: bool = True, opensim_log: str | os.PathLike[str] | None = None) -> list[OpenSimRun]:
     """Run every set of ``excitation_sets`` (shape (n_sets, T, n_muscles)) with :func:`run_isolated`.
 
     ``executor`` is any :class:`concurrent.futures.Executor` (a Dask client's
     ``get_executor()`` works); by default a local process pool with ``max_workers`` (all cores)
     workers. Results come back in set order; a failure in one set never stops the others.
+    ``opensim_log``: the file every run appends OpenSim's log to (see :func:`run_isolated`).
     """
     from tqdm.auto import tqdm
 
@@ -362,7 +372,8 @@ def run_many(osim_path: str | os.PathLike[str], times: np.ndarray, excitation_se
         executor = cf.ProcessPoolExecutor(max_workers=max_workers or os.cpu_count())
     try:
         futures = {executor.submit(run_isolated, str(osim_path), times, excitation_sets[i], list(muscles),
-                                   initial_state=dict(initial_state or {}), settings=settings, timeout=timeout): i
+                                   initial_state=dict(initial_state or {}), settings=settings, timeout=timeout,
+                                   opensim_log=opensim_log): i
                    for i in range(len(excitation_sets))}
         runs: list[OpenSimRun | None] = [None] * len(futures)
         bar = tqdm(total=len(futures), desc="OpenSim runs", unit="run", disable=not progress)

@@ -24,9 +24,8 @@ __all__ = ["correction_boxplot", "joint_error_bars", "make_figures", "overlay", 
 
 
 def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
+    # No matplotlib.use("Agg") here: matplotlib falls back to Agg by itself without a display,
+    # and switching backends would turn a notebook's inline figures off.
     import matplotlib.pyplot as plt
 
     return plt

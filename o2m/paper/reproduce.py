@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from o2m.osim import runtime
 from o2m.paper.dataset import load_dataset, make_dataset
 from o2m.paper.figures import make_figures
 from o2m.paper.pipeline import FULL, QUICK, run_paper
@@ -31,6 +32,7 @@ class PaperRun:
     speed: dict
     figures: list[Path]
     figure_dir: Path
+    opensim_log: Path | None = None
 
 
 def reproduce(
@@ -46,6 +48,7 @@ def reproduce(
     seed: int = 2020,
     timeout: float = 600.0,
     log: Callable[[str], None] = print,
+    opensim_log: str | os.PathLike | None = None,
 ) -> PaperRun:
     """Reproduce the paper: (1) the OpenSim references (stored in ``data``, or regenerated),
     (2) conversion, muscle force fit, CMA-ES and corrective controls (:func:`run_paper`),
@@ -55,9 +58,22 @@ def reproduce(
     ``data/results`` and figures to ``figures``. The speed measured here replaces the stored
     ``speed.json`` only in quick mode or with ``refit``; otherwise it goes to ``out/speed.json``.
     ``executor`` (a concurrent.futures executor, e.g. Dask's) runs the OpenSim simulations and
-    CMA-ES candidates. ``log`` gets one line per step.
+    CMA-ES candidates. ``log`` gets one line per step. OpenSim's log goes to ``opensim_log``
+    (default ``out/opensim.log``, rewritten on every run), not to the terminal.
     """
     data, out = Path(data), Path(out)
+    log_file = Path(opensim_log) if opensim_log is not None else out / "opensim.log"
+    log_file.unlink(missing_ok=True)
+    with runtime.opensim_log(log_file):
+        run = _reproduce(data, out, Path(figures), quick=quick, regenerate_opensim=regenerate_opensim, refit=refit,
+                         executor=executor, n_sets=n_sets, seed=seed, timeout=timeout, log=log)
+    run.opensim_log = log_file
+    return run
+
+
+def _reproduce(data: Path, out: Path, figures: Path, *, quick: bool, regenerate_opensim: bool, refit: bool,
+               executor, n_sets: int, seed: int, timeout: float, log: Callable[[str], None]) -> PaperRun:
+    """The steps of :func:`reproduce`, with OpenSim's log already redirected."""
     if regenerate_opensim:
         if quick:
             data = out / "quick-data"
@@ -150,4 +166,6 @@ def format_summary(run: PaperRun) -> str:
         f"simulation: {sp['ratio']:.0f}x; batched rollouts {sp['rollout_per_s']:.0f} simulations/s"
     )
     lines.append(f"{len(run.figures)} figure files in {run.figure_dir}")
+    if run.opensim_log is not None:
+        lines.append(f"OpenSim's log: {run.opensim_log}")
     return "\n".join(lines)

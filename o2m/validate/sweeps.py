@@ -161,9 +161,8 @@ def plot_moment_arm_sweeps(sweeps: Sequence[Mapping[str, Any]], pdf_path: str | 
     ``-dL/dq`` (dotted, where it differs) and MuJoCo's ``-dL/dq`` (blue dashed), mm against the
     coordinate in degrees (mm for a translational one), ``per_page`` panels a page, worst
     first, into a multi-page PDF. Returns the pairs drawn."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
+    # No matplotlib.use("Agg"): matplotlib falls back to it without a display, and switching
+    # backends would turn a notebook's inline figures off.
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 

@@ -367,3 +367,14 @@ def test_five_coupled_axes_of_two_bodies_reach_the_skeleton_budget(x0):
     assert len(fit.axes[0].outers) >= 2, fit.structure(0)
     assert err["tib_tx"] + max(err["pat_tx"], err["pat_ty"]) < 1e-4, err
     assert err["pat_angle"] < np.deg2rad(0.05), err
+
+
+def test_carrier_groups_are_planned_in_chunks_that_keep_a_body_together():
+    from o2m.convert.coupling_plan import CARRIER_CHUNK, chunks_by_key
+
+    assert chunks_by_key(["a", "b", "a"], size=8) == [[0, 1, 2]]  # small groups: one chunk, as before
+    keys = [k // 2 for k in range(2 * CARRIER_CHUNK + 3)]  # two axes per carrier body
+    chunks = chunks_by_key(keys)
+    assert sorted(i for c in chunks for i in c) == list(range(len(keys)))
+    assert all(len(c) <= CARRIER_CHUNK for c in chunks) and len(chunks) == 3
+    assert all(len({keys[i] for i in c} & {keys[i] for i in d}) == 0 for c in chunks for d in chunks if c is not d)
