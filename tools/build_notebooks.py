@@ -81,8 +81,7 @@ from o2m.convert import ConvertOptions, convert
 
 fetched = models.fetch_model_with_geometry("mobl_arms_no_wrap", progress=False)
 result = convert(fetched.osim, OUT / "mobl_arms", ConvertOptions(quick=QUICK), geometry_dirs=[fetched.geometry_dir])
-print(result.xml)
-print(f"converted in {result.report.seconds:.1f} s")'''),
+print(result.xml)  # the report keeps the conversion time: result.report.seconds'''),
     md("""
 ## What the converter approximated
 
@@ -224,17 +223,16 @@ n = 51 if QUICK else len(ds.times)
 run = simulate(models.fetch_model(ds.meta["model"], progress=False), ds.times[:n], ds.activations.values[i, :n],
                list(ds.activations.muscles), initial_state=read_initial_state(models.fetch(ds.meta["initial_state"])),
                settings=IntegratorSettings(**ds.meta["integrator"]))
-print(run.status, f"{run.times[-1]:.3f} s simulated in {run.integration_time:.2f} s")
+print(run.status, f"{run.times[-1]:.3f} s simulated")  # run.integration_time: OpenSim's wall time
 cols = [run.coordinate_names.index(d) for d in exp.dofs]
 print("max difference from the stored run (rad):", np.abs(run.coordinates[:, cols] - exp.reference[i, :n]).max())'''),
     md("## The same set in MuJoCo"),
     code('''
-import time
 from o2m.mj import rollout
 
-t0 = time.perf_counter()
+# MuJoCo's time for this: %time in a cell, or the speed benchmark's stored numbers below
 tr = rollout(exp.model, exp.init[[i]], exp.controls[[i]], joint_names=exp.dofs)
-print(f"1 s simulated in {time.perf_counter() - t0:.3f} s; diverged: {bool(tr.diverged[0])}")'''),
+print(f"1 s simulated; diverged: {bool(tr.diverged[0])}")'''),
     code('''
 import matplotlib.pyplot as plt
 from o2m.paper.figures import overlay
