@@ -30,6 +30,7 @@ from o2m.convert.records import Approximation
 from o2m.convert.report import ConversionReport
 from o2m.convert.tendons import add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry
+from o2m.convert.wrap_split import add_wrap_splits, narrow_wrap_ranges
 from o2m.convert.wrapfit import apply_fits, fit_paths
 from o2m.convert.wraps import restore_geom_precision
 from o2m.errors import O2MError
@@ -104,7 +105,9 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
     wraps = read_wrap_objects(reader)
+    narrow_wrap_ranges(builder, paths, wraps, str(osim))
     vias = add_length_vias(builder, paths, wraps, str(osim)) if options.length_vias else []
+    splits = add_wrap_splits(builder, paths, wraps, str(osim)) if options.length_vias else []
     tendons = add_paths(builder, paths, wraps, path_forces=options.path_forces)
     force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
     muscle_skipped = _fit_mechanics(result, osim, paths, doc) if options.fit_mechanics and any(
@@ -132,7 +135,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
                 designed.setdefault(v.path, []).append(v)
             fits = fit_paths(osim, xml0, tendons.path_geoms, workers=options.workers, held=tendons.held,
                              quick=options.quick,
-                             designed=designed)
+                             designed=designed, vias={r.path: r.sites for r in splits})
             apply_fits(spec, fits, builder.exact, tendons.exact)
             model = spec.compile()
             fit_seconds = time.perf_counter() - t_fit
