@@ -60,7 +60,8 @@ class ConvertOptions:
         fit_wraps: fit the wrap geoms and side sites of every path with wrapping or conditional
             points to OpenSim's lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`).
         length_vias: replace the wraps that share one path segment, where one coordinate moves it,
-            by a moving via point of designed length (:mod:`o2m.convert.lengthvia`).
+            by a moving via point of designed length (:mod:`o2m.convert.lengthvia`), and split
+            the other shared segments by fixed via points (:mod:`o2m.convert.wrap_split`).
         path_forces: for a path with a MovingPathPoint next to a point of its own body, whether the
             tendon is OpenSim's length or OpenSim's force transmission (``"auto"``, ``"opensim"``,
             ``"kinematic"``; see :mod:`o2m.convert.tendons`). The report records each choice.
