@@ -31,6 +31,7 @@ from o2m.convert.records import Approximation
 from o2m.convert.report import ConversionReport
 from o2m.convert.tendons import add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry
+from o2m.convert.wrap_split import add_wrap_splits, narrow_wrap_ranges
 from o2m.convert.wrapfit import apply_fits, fit_paths
 from o2m.convert.wraps import restore_geom_precision
 from o2m.errors import O2MError
@@ -60,7 +61,8 @@ class ConvertOptions:
         fit_wraps: fit the wrap geoms and side sites of every path with wrapping or conditional
             points to OpenSim's lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`).
         length_vias: replace the wraps that share one path segment, where one coordinate moves it,
-            by a moving via point of designed length (:mod:`o2m.convert.lengthvia`).
+            by a moving via point of designed length (:mod:`o2m.convert.lengthvia`), and split
+            the other shared segments by fixed via points (:mod:`o2m.convert.wrap_split`).
         path_forces: for a path with a MovingPathPoint next to a point of its own body, whether the
             tendon is OpenSim's length or OpenSim's force transmission (``"auto"``, ``"opensim"``,
             ``"kinematic"``; see :mod:`o2m.convert.tendons`). The report records each choice.
@@ -113,7 +115,9 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     reader = SkeletonReader(doc)
     paths = read_paths(reader, builder.ref)
     wraps = read_wrap_objects(reader)
+    narrow_wrap_ranges(builder, paths, wraps, str(osim))
     vias = add_length_vias(builder, paths, wraps, str(osim)) if options.length_vias else []
+    splits = add_wrap_splits(builder, paths, wraps, str(osim)) if options.length_vias else []
     tendons = add_paths(builder, paths, wraps, path_forces=options.path_forces,
                         carrier_tolerance=options.carrier_tolerance)
     force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
@@ -142,7 +146,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
                 designed.setdefault(v.path, []).append(v)
             fits = fit_paths(osim, xml0, tendons.path_geoms, workers=options.workers, held=tendons.held,
                              quick=options.quick,
-                             designed=designed)
+                             designed=designed, vias={r.path: r.sites for r in splits})
             apply_fits(spec, fits, builder.exact, tendons.exact)
             model = spec.compile()
             fit_seconds = time.perf_counter() - t_fit

@@ -298,7 +298,7 @@ def add_length_vias(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, Wr
             coords = coordinates_between(builder, a.body, b.body)
             if len(coords) != 1:
                 builder.result.notes.append(f"{path.owner}: wraps {', '.join(names)} share segment {a.name}-{b.name}, "
-                                            f"which {len(coords)} coordinates move; one of them is left out")
+                                            f"which {len(coords)} coordinates move: split (o2m.convert.wrap_split)")
                 continue
             made = design(osim_path, builder, path, seg, next(iter(coords)), names)
             if made is None:

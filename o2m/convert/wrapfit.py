@@ -104,6 +104,8 @@ class _Task:
     evals: int
     #: per geom: OpenSim's wrap-arc points on the object it stands for (MuJoCo body frame, (n, 3)), or None
     contacts: list[np.ndarray | None] = field(default_factory=list)
+    #: via sites whose positions are fitted too (:mod:`o2m.convert.wrap_split`'s)
+    vias: list[str] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------------------------
@@ -144,18 +146,26 @@ class _Evaluator:
         self.m = mujoco.MjModel.from_xml_string(task.xml)
         self.d = mujoco.MjData(self.m)
         self.gid = [self.m.geom(g).id for g in task.geoms]
-        self.sid = [self.m.site(s).id for s in task.sites]
+        self.sid = [self.m.site(s).id if s else -1 for s in task.sites]  # -1: no side site (quadrant 'all')
+        self.has_side = np.array([i >= 0 for i in self.sid])
         self.pos0 = self.m.geom_pos[self.gid].copy()
         self.rad0 = self.m.geom_size[self.gid, 0].copy()
-        self.side0 = self.m.site_pos[self.sid].copy()
+        self.side0 = np.where(self.has_side[:, None], self.m.site_pos[np.maximum(self.sid, 0)], self.pos0)
         self.cyl = [int(self.m.geom_type[g]) == int(mujoco.mjtGeom.mjGEOM_CYLINDER) for g in self.gid]
         self.scale = np.maximum(self.rad0, MIN_SCALE)
-        self.n_params = 7 * len(self.gid)
+        self.vid = [self.m.site(s).id for s in task.vias]
+        self.via0 = self.m.site_pos[self.vid].copy()
+        self.n_params = 7 * len(self.gid) + 3 * len(self.vid)
         self.evaluations = 0
+
+    def via_positions(self, theta: np.ndarray) -> np.ndarray:
+        """Positions (body frames, (n vias, 3)) of the fitted via sites for parameters ``theta``."""
+        tail = np.asarray(theta, dtype=float)[7 * len(self.gid):].reshape(len(self.vid), 3)
+        return self.via0 + MIN_SCALE * tail
 
     def values(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Geom positions, radii and side-site positions (body frames) of parameters ``theta``."""
-        th = np.asarray(theta, dtype=float).reshape(len(self.gid), 7)
+        th = np.asarray(theta, dtype=float)[:7 * len(self.gid)].reshape(len(self.gid), 7)
         pos = self.pos0 + self.scale[:, None] * th[:, 0:3]
         rad = self.rad0 * np.exp(np.clip(th[:, 3], -3.0, 3.0))
         side = self.side0 + self.scale[:, None] * th[:, 4:7]
@@ -178,6 +188,7 @@ class _Evaluator:
         the centre at its distance in radii; None when no geom has enough points."""
         th = np.zeros((len(self.gid), 7))
         changed = False
+        tail = np.zeros(3 * len(self.vid))
         for k, pts in enumerate(self.t.contacts or []):
             if pts is None or len(pts) < 8:
                 continue
@@ -199,13 +210,16 @@ class _Evaluator:
             th[k, 3] = np.log(radius / self.rad0[k])
             th[k, 4:7] = (side - self.side0[k]) / self.scale[k]
             changed = True
-        return np.clip(th.ravel(), -4.0, 4.0) if changed else None
+        return np.clip(np.concatenate([th.ravel(), tail]), -4.0, 4.0) if changed else None
 
     def apply(self, theta: np.ndarray) -> None:
         pos, rad, side = self.values(theta)
         self.m.geom_pos[self.gid] = pos
         self.m.geom_size[self.gid, 0] = rad
-        self.m.site_pos[self.sid] = side
+        real = np.flatnonzero(self.has_side)
+        self.m.site_pos[np.array(self.sid, dtype=int)[real]] = side[real]
+        if self.vid:
+            self.m.site_pos[self.vid] = self.via_positions(theta)
 
     def errors(self, theta: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray]:
         """Length errors (n,) and moment-arm errors (n, nc), metres, MuJoCo minus OpenSim."""
@@ -295,7 +309,8 @@ def _fit_one(task: _Task) -> PathFit:
         best_x, after, ca = x0, before, cb
     pos, rad, side = ev.values(best_x)
     values = {g: {"pos": pos[k].tolist(), "radius": [float(rad[k])]} for k, g in enumerate(task.geoms)}
-    values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites)})
+    values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites) if s})
+    values.update({s: {"pos": p.tolist()} for s, p in zip(task.vias, ev.via_positions(best_x), strict=True)})
     return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
                    before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values)
 
@@ -437,7 +452,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
 def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any], *, seed: int = 0,
               quick: bool = False, workers: int | None = None, progress: bool = False,
               n_poses: int | None = None, evals: int | None = None,
-              held: dict[str, dict] | None = None, designed: dict[str, list] | None = None) -> list[PathFit]:
+              held: dict[str, dict] | None = None, designed: dict[str, list] | None = None,
+              vias: dict[str, list[str]] | None = None) -> list[PathFit]:
     """Fit the wrap geoms and side sites of every tendon in ``path_geoms`` (each a
     :class:`o2m.tendons.PathGeom`) of the model ``xml`` (MJCF text) to OpenSim ``osim_path``.
 
@@ -446,7 +462,8 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     tendons in parallel. ``held`` (:attr:`o2m.tendons.TendonBuilder.held`) names the tendons whose
     same-body segments are held, and how; ``designed`` (tendon -> its
     :class:`o2m.lengthvia.LengthVia` records) the tendons whose lengths are designed there (their
-    targets are those lengths). Returns one :class:`PathFit` per tendon, in
+    targets are those lengths); ``vias`` (tendon -> site names) the via sites fitted with a
+    tendon's geoms (:mod:`o2m.convert.wrap_split`'s). Returns one :class:`PathFit` per tendon, in
     ``path_geoms`` order.
     """
 
@@ -480,7 +497,8 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
             contacts.append(pts if pts is not None and len(pts) else None)
         tasks.append(_Task(tendon, reduced_xml(xml, tendon), [g.geom for g in geoms], [g.sidesite for g in geoms],
                            [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
-                           min(n_fit, len(tg["qpos"]) - 1), tg["coordinates"], seed * 1000 + k, budget, contacts))
+                           min(n_fit, len(tg["qpos"]) - 1), tg["coordinates"], seed * 1000 + k, budget, contacts,
+                           list((vias or {}).get(tendon, []))))
     fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
     results = {task.tendon: res for task, res in zip(tasks, fitted, strict=True)}
     return [results[t] for t in by_tendon if t in results]

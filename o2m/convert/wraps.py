@@ -151,21 +151,24 @@ class WrapGeoms:
         return sorted(chosen.items(), key=lambda t: t[0])
 
     def side_site(self, wrap: WrapObject, geom: str, a: np.ndarray, b: np.ndarray) -> str:
-        """A side site for ``geom``, on the side the segment a-b (ground, reference pose) passes,
-        or, for a wrap with a quadrant, on the side the quadrant names (for a cylinder, at the
-        height along its axis where that segment passes closest)."""
+        """A side site for ``geom`` of a wrap with a quadrant, on the side the quadrant names (for a
+        cylinder, at the height along its axis where the segment a-b (ground, reference pose)
+        passes closest); "" (none) for a wrap without one: MuJoCo then wraps, as OpenSim does, only
+        a straight path that cuts the geom, the shorter way round, where a side site would also
+        wrap a path clearing the geom on its far side, and always round the side site's side (a
+        pendulum over a sphere: 75 mm too long where the path clears it below,
+        tests/convert/test_wrapping.py)."""
+        if wrap.quadrant in ("all", ""):
+            return ""
         frame, kind, radius = self.geom_frames[geom]
         x_ground = self.b.ground_frames[wrap.body] @ frame
         local_a, local_b = x_ground.inverse().apply(a), x_ground.inverse().apply(b)
         seg = local_b - local_a
         t = np.clip(-local_a @ seg / max(seg @ seg, 1e-18), 0.0, 1.0)
         closest = local_a + t * seg
-        if wrap.quadrant not in ("all", ""):
-            sign = -1.0 if wrap.quadrant.startswith("-") else 1.0
-            axis_wrap = sign * np.eye(3)["xyz".index(wrap.quadrant[-1].lower())]  # in the wrap object's frame
-            direction = (frame.rot.T @ wrap.frame.rot) @ axis_wrap
-        else:
-            direction = closest.copy()
+        sign = -1.0 if wrap.quadrant.startswith("-") else 1.0
+        axis_wrap = sign * np.eye(3)["xyz".index(wrap.quadrant[-1].lower())]  # in the wrap object's frame
+        direction = (frame.rot.T @ wrap.frame.rot) @ axis_wrap
         if kind == "cylinder":
             direction = direction * np.array([1.0, 1.0, 0.0])
         if np.linalg.norm(direction) < 1e-12:

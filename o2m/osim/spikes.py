@@ -56,7 +56,9 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
     difference over 0.01 rad is ~1e-5 m), nor can a conditional point's switch (a step, where
     the two neighbours differ); it is OpenSim's wrapping taking a wrong way round in a narrow band
     of poses (Arm26's BIClong round BIClonghh: 86 mm longer for shoulder elevation in 0.515-0.518
-    rad). Returns muscle index -> {"coordinate", "length", "neighbours"} (m)."""
+    rad). Also flagged: a length more than :data:`SPIKE_TOL` beyond both neighbours even where
+    they differ (a failure band at a step between two ways round: MoBL-ARMS's TMAJ, 2.42 m between
+    0.157 and 0.220 m). Returns muscle index -> {"coordinate", "length", "neighbours"} (m)."""
     out: dict[int, dict[str, Any]] = {}
     if not len(muscles):
         return out
@@ -73,7 +75,11 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
         for i in idx:
             if int(i) in out:
                 continue
-            if abs(up[i] - dn[i]) < SPIKE_TOL and abs(base[i] - 0.5 * (up[i] + dn[i])) > SPIKE_TOL:
+            isolated = abs(up[i] - dn[i]) < SPIKE_TOL and abs(base[i] - 0.5 * (up[i] + dn[i])) > SPIKE_TOL
+            # beyond both neighbours: no smooth path nor a step between two ways round does that
+            # (MoBL-ARMS's TMAJ: 2.42 m between neighbours of 0.157 and 0.220 m)
+            beyond = base[i] - max(up[i], dn[i]) > SPIKE_TOL or min(up[i], dn[i]) - base[i] > SPIKE_TOL
+            if isolated or beyond:
                 out[int(i)] = {"coordinate": name, "length": float(base[i]),
                                "neighbours": [float(dn[i]), float(up[i])]}
     return out
