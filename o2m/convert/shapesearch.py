@@ -169,9 +169,14 @@ def levenberg_marquardt(search: ShapeSearch, x: FloatArray, iterations: int) -> 
     return x
 
 
-def lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float) -> tuple[FloatArray, float] | None:
+def lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float,
+                       guard: tuple[FloatArray, FloatArray, FloatArray, float] | None = None
+                       ) -> tuple[FloatArray, float] | None:
     """min_a max |A a - f| with Σ_j |a_kj| <= bound for each outer k (the 3 columns of outer k
-    after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None."""
+    after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None.
+
+    ``guard`` (Ag (g, n), fg (g,), cap (g,), slack): rows that only need |Ag a - fg| <= cap +
+    slack * (the worst error): capped far from where the error is minimised, never infeasible."""
     from scipy.optimize import linprog
 
     m, n = A.shape
@@ -179,6 +184,12 @@ def lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float)
     ones = np.ones((m, 1))
     rows = [np.hstack([A, np.zeros((m, nb)), -ones]), np.hstack([-A, np.zeros((m, nb)), -ones])]
     rhs = [f, -f]
+    if guard is not None and guard[0].shape[0]:
+        Ag, fg, cap, slack = guard
+        t_col = np.full((Ag.shape[0], 1), -float(slack))
+        zeros = np.zeros((Ag.shape[0], nb))
+        rows += [np.hstack([Ag, zeros, t_col]), np.hstack([-Ag, zeros, t_col])]
+        rhs += [fg + cap, cap - fg]
     if nb:
         sel = np.zeros((nb, n))
         sel[:, 4:] = np.eye(nb)
