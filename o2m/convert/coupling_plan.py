@@ -360,8 +360,8 @@ class _GroupPlan:
 
     def fit(self, uses, hosts, start=()) -> CouplingFit:
         return fit_couplings(self.fns, self.lo, self.hi, self.x0, targets=self.targets, uses=uses, hosts=hosts,
-                             start_shapes=start, margin=COUPLING_MARGIN, guard=COUPLING_GUARD, slope_targets=self.slope_targets,
-                             cache=self.cache)
+                             start_shapes=start, margin=COUPLING_MARGIN, guard=COUPLING_GUARD,
+                             slope_targets=self.slope_targets, cache=self.cache)
 
     def ratios(self, f: CouplingFit) -> list[float]:
         if self.slope_targets is None:

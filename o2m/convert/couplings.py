@@ -21,11 +21,15 @@ from numpy.typing import ArrayLike
 
 from o2m.convert.polyfit import FitError, fit_polynomial
 from o2m.convert.shapesearch import (
+    SLOPE_STEP,
     ShapeSearch,
     axis_basis,
     axis_basis_slope,
+    check_coupling_args,
     levenberg_marquardt,
     lp_bounded_minimax,
+    numeric_slope,
+    polynomial_slope_errors,
     power_shape,
     shifted_power_series,
     unit_shape,
@@ -35,8 +39,8 @@ from o2m.osim.functions import FloatArray
 
 __all__ = [
     "COUPLING_AMPLITUDE", "COUPLING_GAIN", "COUPLING_INNER_SCALE", "COUPLING_MARGIN_SLACK",
-    "COUPLING_GUARD_TRAVEL", "COUPLING_RANDOM_STARTS", "COUPLING_STARTS", "AxisFit", "CouplingFit", "fit_coupling", "fit_couplings",
-    "numeric_slope", "polynomial_slope_errors",
+    "COUPLING_GUARD_TRAVEL", "COUPLING_RANDOM_STARTS", "COUPLING_STARTS", "AxisFit", "CouplingFit",
+    "fit_coupling", "fit_couplings", "numeric_slope", "polynomial_slope_errors",
 ]
 
 #: Starting shapes (c, p) of a new inner polynomial, (t - c)^p, before it is optimised.
@@ -76,8 +80,6 @@ _SEARCH_POINTS = 401
 _LAWSON_ROUNDS = 4
 _LM_ITERATIONS = 200
 _POLISHED = 3
-#: Central-difference step of the derivatives fit_couplings bounds, as a fraction of the fitted range.
-_SLOPE_STEP = 1e-6
 _POLY = np.polynomial.polynomial
 
 
@@ -206,23 +208,6 @@ class CouplingFit:
         return " + ".join(parts)
 
 
-def numeric_slope(fn: Callable[[FloatArray], FloatArray], x: FloatArray, step: float) -> FloatArray:
-    """dfn/dx at x by central differences of step ``step`` (x's unit): for the smooth functions
-    fitted here (splines, polynomials) accurate to about step² |f'''| plus round-off."""
-    x = np.asarray(x, dtype=np.float64)
-    return (np.asarray(fn(x + step), dtype=np.float64) - np.asarray(fn(x - step), dtype=np.float64)) / (2 * step)
-
-
-def polynomial_slope_errors(fn: Callable[[FloatArray], FloatArray], coef: ArrayLike, lo: float, hi: float,
-                            x0: float, n: int = 16001) -> tuple[float, float]:
-    """(worst, RMS) error over [lo, hi] of the derivative of sum_j coef[j] (x - x0)^j against
-    fn's (uniform samples; fn's by :func:`numeric_slope`)."""
-    x = np.linspace(float(lo), float(hi), n)
-    e = _POLY.polyval(x - x0, _POLY.polyder(np.asarray(coef, dtype=float))) - numeric_slope(
-        fn, x, _SLOPE_STEP * max(float(hi) - float(lo), 1e-12))
-    return float(np.max(np.abs(e))), float(np.sqrt(np.mean(e * e)))
-
-
 def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, hi: float, x0: float, *,
                   targets: Sequence[float], uses: Sequence[Sequence[int]], hosts: Sequence[int],
                   start_shapes: ArrayLike = (), n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
@@ -286,7 +271,7 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     Units: x in the driving coordinate's unit (rad or m); y_a and ``targets[a]`` in axis a's.
     """
     lo, hi, x0 = float(lo), float(hi), float(x0)
-    start = _checked_start(len(fns), lo, hi, x0, targets, uses, hosts, start_shapes, slope_targets)
+    start = check_coupling_args(len(fns), lo, hi, x0, targets, uses, hosts, start_shapes, slope_targets)
     samples = _Samples(fns, lo, hi, x0, n, margin, slope_targets, guard)
     # everything below sees the functions only through their values on this grid (which holds the others)
     key = hashlib.sha256(b"".join([samples.check.tobytes(), *(f.tobytes() for f in samples.fc),
@@ -313,28 +298,6 @@ def _check_finite(fit: CouplingFit) -> None:
         raise FitError(f"the coupling fitted over [{fit.lo:g}, {fit.hi:g}] is not finite")
 
 
-def _checked_start(n_axes: int, lo: float, hi: float, x0: float, targets: Sequence[float],
-                   uses: Sequence[Sequence[int]], hosts: Sequence[int], start_shapes: ArrayLike,
-                   slope_targets: Sequence[float] | None) -> FloatArray:
-    """fit_couplings's arguments checked (ValueError if they do not fit together); the start
-    shapes as an (S, 4) array."""
-    L = len(hosts)
-    if not hi > lo:
-        raise ValueError(f"fit_couplings needs hi > lo, got [{lo}, {hi}]")
-    if not lo <= x0 <= hi:
-        raise ValueError(f"fit_couplings needs lo <= x0 <= hi, got x0 = {x0} outside [{lo}, {hi}]")
-    if len(targets) != n_axes or len(uses) != n_axes:
-        raise ValueError("fit_couplings needs one target and one list of used inners per function")
-    if any(not 0 <= h < n_axes for h in hosts) or any(not 0 <= k < L for u in uses for k in u):
-        raise ValueError("fit_couplings: hosts must name axes and uses must name inner joints")
-    start = np.asarray(start_shapes, dtype=float).reshape(-1, 4)
-    if start.shape[0] > L:
-        raise ValueError("fit_couplings: more start shapes than inner joints")
-    if slope_targets is not None and len(slope_targets) != n_axes:
-        raise ValueError("fit_couplings needs one slope target per function")
-    return start
-
-
 class _Samples:
     """The functions' values and derivatives on the grid the fit is measured on (``check``: 8x
     denser than the fitting grid, over [lo, hi] and its margins, with the functions' knots), and
@@ -348,7 +311,7 @@ class _Samples:
         self.lo_m, self.hi_m = lo - self.width, hi + self.width  # the range with its margins
         self.check = self.grid(8 * (n - 1) + 1)
         self.fc = [np.asarray(fn(self.check), dtype=np.float64) for fn in fns]
-        self.step = _SLOPE_STEP * (self.hi_m - self.lo_m)
+        self.step = SLOPE_STEP * (self.hi_m - self.lo_m)
         self.dc = [numeric_slope(fn, self.check, self.step) for fn in fns]
         self.slopes = [math.inf] * len(fns) if slope_targets is None else [float(v) for v in slope_targets]
         self.guard = max(float(guard), float(margin)) * (hi - lo)
