@@ -46,6 +46,15 @@ COUPLING_SLOPE_TARGET: dict[str, float | None] = {"m": None, "rad": None}
 #: leaves the spline fast (0.8 mm 0.05 rad beyond a knee's range). Farther out the extra
 #: joints diverge much faster than a plain quartic: keep such coordinates within their range.
 COUPLING_MARGIN = 0.02
+#: How far beyond each end (a fraction of the range) their error is capped
+#: (:func:`o2m.convert.couplings.fit_couplings`'s ``guard``); 0: not at all. OpenSim holds no
+#: coordinate in its range (Gait10dof18musc's knee, driven by random excitations, goes 2.1 rad past
+#: its 0.17 rad limit), where a fit of the range alone leaves the spline like a degree-16
+#: polynomial. Measured on Gait10dof18musc (5 random-excitation sets, mean abs coordinate error /
+#: right knee's): 0 gives 0.200 / 0.715 rad, 0.25 0.147 / 0.380 rad, 0.5 0.131 / 0.273 rad; but the
+#: in-range poses then lose accuracy (Gait10dof18musc 0.045 -> 0.090 / 0.217 mm, Leg6Dof9Musc
+#: 0.060 -> 0.23 mm, Leg39 0.062 -> 0.25 mm at 0.25), over the 0.1 mm target, so it is off.
+COUPLING_GUARD = 0.0
 #: Degrees of freedom MuJoCo allows one body ("more than 6 dofs in body" otherwise).
 MAX_BODY_DOFS = 6
 #: A coordinate's couplings are planned with a joint's translations and rotations on bodies of
@@ -377,8 +386,8 @@ class _GroupPlan:
 
     def fit(self, uses, hosts, start=()) -> CouplingFit:
         return fit_couplings(self.fns, self.lo, self.hi, self.x0, targets=self.targets, uses=uses, hosts=hosts,
-                             start_shapes=start, margin=COUPLING_MARGIN, slope_targets=self.slope_targets,
-                             cache=self.cache)
+                             start_shapes=start, margin=COUPLING_MARGIN, guard=COUPLING_GUARD,
+                             slope_targets=self.slope_targets, cache=self.cache)
 
     def ratios(self, f: CouplingFit) -> list[float]:
         if self.slope_targets is None:

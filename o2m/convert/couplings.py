@@ -21,11 +21,15 @@ from numpy.typing import ArrayLike
 
 from o2m.convert.polyfit import FitError, fit_polynomial
 from o2m.convert.shapesearch import (
+    SLOPE_STEP,
     ShapeSearch,
     axis_basis,
     axis_basis_slope,
+    check_coupling_args,
     levenberg_marquardt,
     lp_bounded_minimax,
+    numeric_slope,
+    polynomial_slope_errors,
     power_shape,
     shifted_power_series,
     unit_shape,
@@ -35,8 +39,8 @@ from o2m.osim.functions import FloatArray
 
 __all__ = [
     "COUPLING_AMPLITUDE", "COUPLING_GAIN", "COUPLING_INNER_SCALE", "COUPLING_MARGIN_SLACK",
-    "COUPLING_RANDOM_STARTS", "COUPLING_STARTS", "AxisFit", "CouplingFit", "fit_coupling", "fit_couplings",
-    "numeric_slope", "polynomial_slope_errors",
+    "COUPLING_GUARD_TRAVEL", "COUPLING_RANDOM_STARTS", "COUPLING_STARTS", "AxisFit", "CouplingFit",
+    "fit_coupling", "fit_couplings", "numeric_slope", "polynomial_slope_errors",
 ]
 
 #: Starting shapes (c, p) of a new inner polynomial, (t - c)^p, before it is optimised.
@@ -64,12 +68,18 @@ COUPLING_INNER_SCALE = 2.0
 #: the error inside: a degree-16 polynomial fitted on [lo, hi] alone leaves it fast (0.7 mm
 #: 0.045 rad beyond a knee's range), which a joint pressing into a soft limit reaches.
 COUPLING_MARGIN_SLACK = 5.0
+#: fit_couplings's guard (``guard``, a fraction of the range beyond each end, outside the margins):
+#: there each axis's error may reach COUPLING_GUARD_TRAVEL times its travel over the range
+#: (max - min of y on [lo, hi]) times ((distance beyond the range) / (hi - lo))², plus
+#: COUPLING_MARGIN_SLACK times the error inside. A chained fit of the range alone leaves the
+#: spline like a degree-16 polynomial (Gait10dof18musc's knee translation: 22 mm 0.2 rad beyond
+#: its range, 1.8e5 m one range width beyond), and OpenSim does not hold a coordinate in its range.
+COUPLING_GUARD_TRAVEL = 0.1
+_GUARD_POINTS = 201
 _SEARCH_POINTS = 401
 _LAWSON_ROUNDS = 4
 _LM_ITERATIONS = 200
 _POLISHED = 3
-#: Central-difference step of the derivatives fit_couplings bounds, as a fraction of the fitted range.
-_SLOPE_STEP = 1e-6
 _POLY = np.polynomial.polynomial
 
 
@@ -89,7 +99,8 @@ class AxisFit:
     (the function's unit per x unit: for a path point's location against a rotational
     coordinate, m/rad, directly a moment-arm error); ``quartic_slope_error`` /
     ``quartic_slope_rms``: the plain quartic's; ``slope_target``: the derivative's target (inf
-    when the fit bounds the value only).
+    when the fit bounds the value only); ``guard_error``: the worst error in the guard beyond the
+    margins (0 without one).
     """
 
     main: FloatArray
@@ -105,6 +116,7 @@ class AxisFit:
     quartic_slope_error: float = 0.0
     quartic_slope_rms: float = 0.0
     slope_target: float = math.inf
+    guard_error: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -117,7 +129,8 @@ class CouplingFit:
     coefficients (T_1..T_4) in t = (x - mid) / half, mid and half the centre and half-width of
     [lo - margin, hi + margin]; ``axes``: one :class:`AxisFit` per function; ``condition``: the
     largest 2-norm condition number of an axis's column-scaled linear-program basis;
-    ``margin``: how far beyond [lo, hi] the fit reaches on each side (x's unit).
+    ``margin``: how far beyond [lo, hi] the fit reaches on each side (x's unit); ``guard``: how far
+    beyond [lo, hi] its error is capped (x's unit, 0: not at all).
     """
 
     inners: FloatArray
@@ -129,6 +142,7 @@ class CouplingFit:
     hi: float
     x0: float
     margin: float = 0.0
+    guard: float = 0.0
 
     @property
     def n_inner(self) -> int:
@@ -194,27 +208,11 @@ class CouplingFit:
         return " + ".join(parts)
 
 
-def numeric_slope(fn: Callable[[FloatArray], FloatArray], x: FloatArray, step: float) -> FloatArray:
-    """dfn/dx at x by central differences of step ``step`` (x's unit): for the smooth functions
-    fitted here (splines, polynomials) accurate to about step² |f'''| plus round-off."""
-    x = np.asarray(x, dtype=np.float64)
-    return (np.asarray(fn(x + step), dtype=np.float64) - np.asarray(fn(x - step), dtype=np.float64)) / (2 * step)
-
-
-def polynomial_slope_errors(fn: Callable[[FloatArray], FloatArray], coef: ArrayLike, lo: float, hi: float,
-                            x0: float, n: int = 16001) -> tuple[float, float]:
-    """(worst, RMS) error over [lo, hi] of the derivative of sum_j coef[j] (x - x0)^j against
-    fn's (uniform samples; fn's by :func:`numeric_slope`)."""
-    x = np.linspace(float(lo), float(hi), n)
-    e = _POLY.polyval(x - x0, _POLY.polyder(np.asarray(coef, dtype=float))) - numeric_slope(
-        fn, x, _SLOPE_STEP * max(float(hi) - float(lo), 1e-12))
-    return float(np.max(np.abs(e))), float(np.sqrt(np.mean(e * e)))
-
-
 def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, hi: float, x0: float, *,
                   targets: Sequence[float], uses: Sequence[Sequence[int]], hosts: Sequence[int],
                   start_shapes: ArrayLike = (), n: int = 2001, amplitude: float = COUPLING_AMPLITUDE,
-                  margin: float = 0.0, seed: int = 0, slope_targets: Sequence[float] | None = None,
+                  margin: float = 0.0, guard: float = 0.0, seed: int = 0,
+                  slope_targets: Sequence[float] | None = None,
                   cache: dict[bytes, CouplingFit] | None = None) -> CouplingFit:
     """Approximate functions y_a of one variable x on [lo, hi] (the coupled axes of one
     coordinate) by sums of MuJoCo joints, each joint following a quartic joint equality.
@@ -252,7 +250,10 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
 
     ``margin`` (a fraction of hi - lo) widens the fit by that much on each side, where the error
     may be :data:`COUPLING_MARGIN_SLACK` times larger than inside; the errors reported are the
-    ones inside [lo, hi] (the margins' in ``margin_error``).
+    ones inside [lo, hi] (the margins' in ``margin_error``). ``guard`` (a fraction of hi - lo, at
+    least ``margin``) caps the error out to that far beyond each end (see
+    :data:`COUPLING_GUARD_TRAVEL`; ``guard_error``): the chained joints then stay near the
+    function where a coordinate leaves its range, which a fit of the range alone does not.
 
     ``slope_targets`` (one per function, its unit per x unit) makes the fits derivative-aware:
     the derivative of each sum of joints is linear in the same coefficients, so each linear
@@ -270,12 +271,12 @@ def fit_couplings(fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, 
     Units: x in the driving coordinate's unit (rad or m); y_a and ``targets[a]`` in axis a's.
     """
     lo, hi, x0 = float(lo), float(hi), float(x0)
-    start = _checked_start(len(fns), lo, hi, x0, targets, uses, hosts, start_shapes, slope_targets)
-    samples = _Samples(fns, lo, hi, x0, n, margin, slope_targets)
+    start = check_coupling_args(len(fns), lo, hi, x0, targets, uses, hosts, start_shapes, slope_targets)
+    samples = _Samples(fns, lo, hi, x0, n, margin, slope_targets, guard)
     # everything below sees the functions only through their values on this grid (which holds the others)
     key = hashlib.sha256(b"".join([samples.check.tobytes(), *(f.tobytes() for f in samples.fc),
                                    *(f.tobytes() for f in samples.dc), start.tobytes(),
-                                   np.array([lo, hi, x0, n, amplitude, margin, seed, *targets, *hosts,
+                                   np.array([lo, hi, x0, n, amplitude, margin, guard, seed, *targets, *hosts,
                                              *samples.slopes]).tobytes(),
                                    repr([list(u) for u in uses]).encode()])).digest()
     if cache is not None and key in cache:
@@ -297,44 +298,35 @@ def _check_finite(fit: CouplingFit) -> None:
         raise FitError(f"the coupling fitted over [{fit.lo:g}, {fit.hi:g}] is not finite")
 
 
-def _checked_start(n_axes: int, lo: float, hi: float, x0: float, targets: Sequence[float],
-                   uses: Sequence[Sequence[int]], hosts: Sequence[int], start_shapes: ArrayLike,
-                   slope_targets: Sequence[float] | None) -> FloatArray:
-    """fit_couplings's arguments checked (ValueError if they do not fit together); the start
-    shapes as an (S, 4) array."""
-    L = len(hosts)
-    if not hi > lo:
-        raise ValueError(f"fit_couplings needs hi > lo, got [{lo}, {hi}]")
-    if not lo <= x0 <= hi:
-        raise ValueError(f"fit_couplings needs lo <= x0 <= hi, got x0 = {x0} outside [{lo}, {hi}]")
-    if len(targets) != n_axes or len(uses) != n_axes:
-        raise ValueError("fit_couplings needs one target and one list of used inners per function")
-    if any(not 0 <= h < n_axes for h in hosts) or any(not 0 <= k < L for u in uses for k in u):
-        raise ValueError("fit_couplings: hosts must name axes and uses must name inner joints")
-    start = np.asarray(start_shapes, dtype=float).reshape(-1, 4)
-    if start.shape[0] > L:
-        raise ValueError("fit_couplings: more start shapes than inner joints")
-    if slope_targets is not None and len(slope_targets) != n_axes:
-        raise ValueError("fit_couplings needs one slope target per function")
-    return start
-
-
 class _Samples:
     """The functions' values and derivatives on the grid the fit is measured on (``check``: 8x
     denser than the fitting grid, over [lo, hi] and its margins, with the functions' knots), and
     the grids and sample weights of :func:`fit_couplings` (x's unit)."""
 
     def __init__(self, fns: Sequence[Callable[[FloatArray], FloatArray]], lo: float, hi: float, x0: float,
-                 n: int, margin: float, slope_targets: Sequence[float] | None):
+                 n: int, margin: float, slope_targets: Sequence[float] | None, guard: float = 0.0):
         self.fns, self.lo, self.hi, self.x0 = fns, lo, hi, x0
         self.knots = [np.asarray(getattr(fn, "knots", np.empty(0)), dtype=float) for fn in fns]
         self.width = float(margin) * (hi - lo)
         self.lo_m, self.hi_m = lo - self.width, hi + self.width  # the range with its margins
         self.check = self.grid(8 * (n - 1) + 1)
         self.fc = [np.asarray(fn(self.check), dtype=np.float64) for fn in fns]
-        self.step = _SLOPE_STEP * (self.hi_m - self.lo_m)
+        self.step = SLOPE_STEP * (self.hi_m - self.lo_m)
         self.dc = [numeric_slope(fn, self.check, self.step) for fn in fns]
         self.slopes = [math.inf] * len(fns) if slope_targets is None else [float(v) for v in slope_targets]
+        self.guard = max(float(guard), float(margin)) * (hi - lo)
+        self.guard_x = self.guard_grid()
+        inside = (self.check >= lo) & (self.check <= hi)
+        beyond = np.maximum(lo - self.guard_x, self.guard_x - hi) / (hi - lo)
+        self.guard_f = [np.asarray(fn(self.guard_x), dtype=np.float64) for fn in fns]
+        self.guard_cap = [COUPLING_GUARD_TRAVEL * float(np.ptp(f[inside])) * beyond ** 2 for f in self.fc]
+
+    def guard_grid(self) -> FloatArray:
+        """The guard's samples beyond the margins on each side (empty without a guard)."""
+        if self.guard <= self.width:
+            return np.zeros(0)
+        g = np.linspace(self.width, self.guard, _GUARD_POINTS)[1:]
+        return np.concatenate([self.lo - g[::-1], self.hi + g])
 
     def grid(self, m: int) -> FloatArray:
         """m uniform points over the range with its margins, plus the knots and (with margins) lo and hi."""
@@ -376,19 +368,40 @@ class _Problem:
         # ratio: the value error a derivative error of its slope target counts as (None: value only)
         self.ratio = [None if math.isinf(sl) else float(tg) / sl for tg, sl in zip(targets, s.slopes, strict=True)]
         self.ds = [numeric_slope(fn, xs, s.step) * half for fn in fns]
+        # the guard (values less their x0 value, caps), in each function's scale and its target's
+        self.tg = (s.guard_x - mid) / half
+        self.gs = [g - c for g, c in zip(s.guard_f, self.f0, strict=True)]
+        self.g_search = [(g, np.maximum(cap + q.max_error, 1e-9 * fs)) for g, cap, q, fs
+                         in zip(self.gs, s.guard_cap, self.quartics, self.fscale, strict=True)]
+        self.g_search_w = [(g * w, cap * w) for (g, cap), w in zip(self.g_search, weight, strict=True)]
+        # the shapes' least-squares search sees the guard too, each sample weighted by 1 / its
+        # (most lenient) cap in the axes' target units: an error at the cap counts as the target inside
+        guard_rows = 1.0 / np.max([cap for _, cap in self.g_search_w], axis=0, initial=1e-300) \
+            if self.tg.size else np.zeros(0)
+        self.search_t = np.concatenate([self.ts, self.tg])
+        self.search_f = [np.concatenate([f, g]) for f, (g, _) in zip(self.f_search, self.g_search_w, strict=True)]
+        self.search_rows = np.concatenate([self.w_search, np.minimum(guard_rows, 1.0)])
         self.d_search = [numeric_slope(fn, ts_x, s.step) * half * w for fn, w in zip(fns, weight, strict=True)]
 
+    def unit(self, tt: FloatArray, shape: FloatArray) -> tuple[FloatArray, float, FloatArray]:
+        """An inner shape scaled to at most 1 over ``tt`` and the guard: (values on tt, scale, values
+        on the guard). Over the guard too, so the outer joints' amplitude bound holds there."""
+        h, nk = unit_shape(np.concatenate([tt, self.tg]), self.t0, shape)
+        return h[:tt.size], nk, h[tt.size:]
+
     def lp(self, shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], dd: Sequence[FloatArray],
-           ww: FloatArray, axis_uses, polish=False):
+           ww: FloatArray, axis_uses, guard: Sequence[tuple[FloatArray, FloatArray]], polish=False):
         """Per axis: (worst error weighted by ``ww``, coefficients of the column-scaled basis,
         column scales, cond). With ``polish``, the least-squares coefficients replace the linear
         program's when they respect the amplitude bound and have the smaller worst error (they
         reach round-off for a function the structure represents exactly, where the LP stops at
         its tolerance). ``dd``: each axis's derivative in t (ff's units), bounded (times
-        ``ratio``) with the values where the axis has a slope target."""
+        ``ratio``) with the values where the axis has a slope target. ``guard``: each axis's (values,
+        caps) on the guard's samples ``self.tg``, in ff's units."""
         t0, amplitude = self.t0, self.amplitude
-        units = [unit_shape(tt, t0, s) for s in shapes]
+        units = [self.unit(tt, s) for s in shapes]
         hs = [u[0] for u in units]
+        hg = [u[2] for u in units]
         dhs = [unit_shape_slope(tt, s, u[1]) for s, u in zip(shapes, units, strict=True)]
         out = []
         for a, f in enumerate(ff):
@@ -401,7 +414,10 @@ class _Problem:
                 As = np.vstack([As, dA / scale * sw[:, None]])
                 target = np.concatenate([target, dd[a] * sw])
             fsa = max(float(np.max(np.abs(f))), 1e-300)
-            got = lp_bounded_minimax(As, target / fsa, len(axis_uses[a]), amplitude)
+            Ag = axis_basis(self.tg, t0, [hg[k] for k in axis_uses[a]]) / scale
+            g_val, g_cap = guard[a]
+            got = lp_bounded_minimax(As, target / fsa, len(axis_uses[a]), amplitude,
+                                     (Ag, g_val / fsa, g_cap / fsa, COUPLING_MARGIN_SLACK))
             if got is None:
                 return None
             coef, err = got[0] * fsa, got[1] * fsa
@@ -409,14 +425,15 @@ class _Problem:
                 ls = np.linalg.lstsq(As, target, rcond=None)[0]
                 sums = np.abs(ls[4:]).reshape(-1, 3).sum(axis=1) if ls.size > 4 else np.zeros(0)
                 ls_err = float(np.max(np.abs(As @ ls - target)))
-                if np.all(sums <= amplitude * fsa) and ls_err < float(np.max(np.abs(As @ coef - target))):
+                capped = np.all(np.abs(Ag @ ls - g_val) <= g_cap + COUPLING_MARGIN_SLACK * ls_err)
+                if capped and np.all(sums <= amplitude * fsa) and ls_err < float(np.max(np.abs(As @ coef - target))):
                     coef, err = ls, ls_err
             out.append((err, coef, scale, float(np.linalg.cond(A / scale))))
         return out
 
     def score(self, shapes, axis_uses) -> float:
         """The worst error of the search grid's linear programs, relative to each axis's target."""
-        got = self.lp(shapes, self.ts, self.f_search, self.d_search, self.w_search, axis_uses)
+        got = self.lp(shapes, self.ts, self.f_search, self.d_search, self.w_search, axis_uses, self.g_search_w)
         return math.inf if got is None else max(g[0] for g in got)
 
 
@@ -443,7 +460,7 @@ def _search_stage(p: _Problem, shapes: list[FloatArray], k_all: int, uses: Seque
     """The first ``k_all`` shapes: the given ones polished if there are as many, else with a new
     one searched from :data:`COUPLING_STARTS` and random starts (Levenberg-Marquardt from each)."""
     axis_uses = [[k for k in u if k < k_all] for u in uses]
-    search = ShapeSearch(p.ts, p.t0, p.f_search, axis_uses, p.w_search)
+    search = ShapeSearch(p.search_t, p.t0, p.search_f, axis_uses, p.search_rows)
     if len(shapes) >= k_all:
         starts = [np.zeros(0)]  # polish the given shapes
     else:
@@ -453,7 +470,7 @@ def _search_stage(p: _Problem, shapes: list[FloatArray], k_all: int, uses: Seque
     for s0 in starts:
         flat0 = np.concatenate([*shapes[:k_all], s0 / max(float(np.linalg.norm(s0)), 1e-300)] if s0.size
                                else shapes[:k_all])
-        search.sw = [np.ones_like(f) for f in p.f_search]
+        search.sw = [np.ones_like(f) for f in p.search_f]
         flat = levenberg_marquardt(search, flat0, _LM_ITERATIONS)
         r = search.residual(flat)
         runs.append((float(r @ r), flat, flat0))
@@ -465,7 +482,7 @@ def _search_stage(p: _Problem, shapes: list[FloatArray], k_all: int, uses: Seque
               enumerate([runs[0][2]] + [r[1] for r in runs])]
     scored.sort(key=lambda z: (z[0], z[1]))
     for _, _, flat in list(scored[:_POLISHED]):
-        ws = [np.ones_like(f) for f in p.f_search]
+        ws = [np.ones_like(f) for f in p.search_f]
         for j in range(_LAWSON_ROUNDS):
             ws = [w * np.abs(e) for w, e in zip(ws, search.errors(flat), strict=True)]
             top = max(max(float(np.max(w)) for w in ws), 1e-300)
@@ -483,10 +500,10 @@ def _assembled(p: _Problem, shapes: list[FloatArray], uses: Sequence[Sequence[in
     errors not measured yet): the main quartics, the inner joints scaled by
     :data:`COUPLING_INNER_SCALE` and the outer quartics in the inner joints' values."""
     s, n_axes, L = p.s, len(p.s.fns), len(hosts)
-    got = p.lp(shapes, p.t, p.fs, p.ds, p.w_fit, [list(u) for u in uses], polish=True) if L else None
+    got = p.lp(shapes, p.t, p.fs, p.ds, p.w_fit, [list(u) for u in uses], p.g_search, polish=True) if L else None
     if L and got is None:
         raise ValueError("fit_couplings: the linear program failed")
-    units = [unit_shape(p.t, p.t0, sh) for sh in shapes]
+    units = [p.unit(p.t, sh)[:2] for sh in shapes]
     inner_poly = [shifted_power_series(sh, p.t0, p.half) / nk for sh, (_, nk) in zip(shapes, units, strict=True)]
     corrections: dict[tuple[int, int], tuple[FloatArray, float]] = {}  # (axis, inner): (b (3,), max |g|)
     mains = []
@@ -523,7 +540,7 @@ def _assembled(p: _Problem, shapes: list[FloatArray], uses: Sequence[Sequence[in
     return CouplingFit(inners=inners, hosts=tuple(int(h) for h in hosts), shapes=np.array(shapes).reshape(-1, 4),
                        axes=tuple(AxisFit(mains[a], tuple(outers_by_axis[a]), 0.0, 0.0, p.quartics[a].max_error,
                                           float(p.targets[a]), 0.0) for a in range(n_axes)),
-                       condition=float(max(conds)), lo=s.lo, hi=s.hi, x0=s.x0, margin=s.width)
+                       condition=float(max(conds)), lo=s.lo, hi=s.hi, x0=s.x0, margin=s.width, guard=s.guard)
 
 
 def _measured(p: _Problem, draft: CouplingFit) -> CouplingFit:
@@ -543,7 +560,8 @@ def _measured(p: _Problem, draft: CouplingFit) -> CouplingFit:
                             float(np.sqrt(np.mean(err[inside] ** 2))), p.quartics[a].max_error, float(p.targets[a]),
                             amp, float(np.max(np.abs(err[~inside]), initial=0.0)),
                             float(np.max(np.abs(slope))), float(np.sqrt(np.mean(slope ** 2))),
-                            float(np.max(np.abs(q_slope))), float(np.sqrt(np.mean(q_slope ** 2))), s.slopes[a]))
+                            float(np.max(np.abs(q_slope))), float(np.sqrt(np.mean(q_slope ** 2))), s.slopes[a],
+                            float(np.max(np.abs(draft.axis_value(a, s.guard_x) - s.guard_f[a]), initial=0.0))))
     return CouplingFit(**{**draft.__dict__, "axes": tuple(axes)})
 
 

@@ -13,9 +13,10 @@ dimensionless; x in the driving coordinate's unit (rad or m); values in each axi
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from o2m.osim.functions import FloatArray
 
@@ -27,6 +28,49 @@ __all__ = [
 _LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
 _CHEB = np.polynomial.chebyshev
 _POLY = np.polynomial.polynomial
+
+
+#: Central-difference step of the derivatives fit_couplings bounds, as a fraction of the fitted range.
+SLOPE_STEP = 1e-6
+
+
+def numeric_slope(fn: Callable[[FloatArray], FloatArray], x: FloatArray, step: float) -> FloatArray:
+    """dfn/dx at x by central differences of step ``step`` (x's unit): for the smooth functions
+    fitted here (splines, polynomials) accurate to about step² |f'''| plus round-off."""
+    x = np.asarray(x, dtype=np.float64)
+    return (np.asarray(fn(x + step), dtype=np.float64) - np.asarray(fn(x - step), dtype=np.float64)) / (2 * step)
+
+
+def polynomial_slope_errors(fn: Callable[[FloatArray], FloatArray], coef: ArrayLike, lo: float, hi: float,
+                            x0: float, n: int = 16001) -> tuple[float, float]:
+    """(worst, RMS) error over [lo, hi] of the derivative of sum_j coef[j] (x - x0)^j against
+    fn's (uniform samples; fn's by :func:`numeric_slope`)."""
+    x = np.linspace(float(lo), float(hi), n)
+    e = _POLY.polyval(x - x0, _POLY.polyder(np.asarray(coef, dtype=float))) - numeric_slope(
+        fn, x, SLOPE_STEP * max(float(hi) - float(lo), 1e-12))
+    return float(np.max(np.abs(e))), float(np.sqrt(np.mean(e * e)))
+
+
+def check_coupling_args(n_axes: int, lo: float, hi: float, x0: float, targets: Sequence[float],
+                   uses: Sequence[Sequence[int]], hosts: Sequence[int], start_shapes: ArrayLike,
+                   slope_targets: Sequence[float] | None) -> FloatArray:
+    """fit_couplings's arguments checked (ValueError if they do not fit together); the start
+    shapes as an (S, 4) array."""
+    L = len(hosts)
+    if not hi > lo:
+        raise ValueError(f"fit_couplings needs hi > lo, got [{lo}, {hi}]")
+    if not lo <= x0 <= hi:
+        raise ValueError(f"fit_couplings needs lo <= x0 <= hi, got x0 = {x0} outside [{lo}, {hi}]")
+    if len(targets) != n_axes or len(uses) != n_axes:
+        raise ValueError("fit_couplings needs one target and one list of used inners per function")
+    if any(not 0 <= h < n_axes for h in hosts) or any(not 0 <= k < L for u in uses for k in u):
+        raise ValueError("fit_couplings: hosts must name axes and uses must name inner joints")
+    start = np.asarray(start_shapes, dtype=float).reshape(-1, 4)
+    if start.shape[0] > L:
+        raise ValueError("fit_couplings: more start shapes than inner joints")
+    if slope_targets is not None and len(slope_targets) != n_axes:
+        raise ValueError("fit_couplings needs one slope target per function")
+    return start
 
 
 def _shape_values(t: FloatArray, t0: float, shape: FloatArray) -> FloatArray:
@@ -169,9 +213,14 @@ def levenberg_marquardt(search: ShapeSearch, x: FloatArray, iterations: int) -> 
     return x
 
 
-def lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float) -> tuple[FloatArray, float] | None:
+def lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float,
+                       guard: tuple[FloatArray, FloatArray, FloatArray, float] | None = None
+                       ) -> tuple[FloatArray, float] | None:
     """min_a max |A a - f| with Σ_j |a_kj| <= bound for each outer k (the 3 columns of outer k
-    after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None."""
+    after the 4 main ones); A's columns are scaled to at most 1. (a, worst error) or None.
+
+    ``guard`` (Ag (g, n), fg (g,), cap (g,), slack): rows that only need |Ag a - fg| <= cap +
+    slack * (the worst error): capped far from where the error is minimised, never infeasible."""
     from scipy.optimize import linprog
 
     m, n = A.shape
@@ -179,6 +228,12 @@ def lp_bounded_minimax(A: FloatArray, f: FloatArray, n_outer: int, bound: float)
     ones = np.ones((m, 1))
     rows = [np.hstack([A, np.zeros((m, nb)), -ones]), np.hstack([-A, np.zeros((m, nb)), -ones])]
     rhs = [f, -f]
+    if guard is not None and guard[0].shape[0]:
+        Ag, fg, cap, slack = guard
+        t_col = np.full((Ag.shape[0], 1), -float(slack))
+        zeros = np.zeros((Ag.shape[0], nb))
+        rows += [np.hstack([Ag, zeros, t_col]), np.hstack([-Ag, zeros, t_col])]
+        rhs += [fg + cap, cap - fg]
     if nb:
         sel = np.zeros((nb, n))
         sel[:, 4:] = np.eye(nb)

@@ -135,6 +135,33 @@ def test_margin_keeps_the_fit_just_beyond_the_range():
     assert wide.axes[0].margin_error <= couplings.COUPLING_MARGIN_SLACK * wide.axes[0].max_error * 1.01
 
 
+def test_guard_caps_the_chained_fit_beyond_the_range():
+    """A knee translation (the gait models' spline, m against rad) as one inner/outer pair: fitted
+    on its range alone it leaves the spline like a degree-16 polynomial a quarter of the range
+    beyond it; with a guard its error there stays within the stated cap (0.1 x the travel x
+    (distance / range)² + the plain quartic's error + COUPLING_MARGIN_SLACK x the error inside),
+    finite, and inside the range still better than the plain quartic."""
+    lo, hi = KNEE_RANGE
+    width = hi - lo
+    kw = dict(targets=[1e-6], uses=[[0]], hosts=[0], margin=0.02)
+    plain = fit_couplings([knee], lo, hi, 0.0, **kw)
+    guarded = fit_couplings([knee], lo, hi, 0.0, guard=0.25, **kw)
+    assert guarded.guard == pytest.approx(0.25 * width)
+    d = np.linspace(0.02, 0.25, 2001) * width  # beyond the margins, out to the guard
+    x = np.concatenate([lo - d, hi + d])
+    x_in = np.linspace(lo, hi, 2001)
+    travel = float(np.ptp(knee(x_in)))
+    ax = guarded.axes[0]
+    cap = (couplings.COUPLING_GUARD_TRAVEL * travel * (np.concatenate([d, d]) / width) ** 2
+           + ax.quartic_error + couplings.COUPLING_MARGIN_SLACK * ax.max_error)
+    err = {name: np.abs(f.axis_value(0, x) - knee(x)) for name, f in (("plain", plain), ("guarded", guarded))}
+    assert np.all(np.isfinite(err["guarded"]))
+    assert np.all(err["guarded"] <= 1.01 * cap), float(np.max(err["guarded"] / cap))
+    assert float(np.max(err["guarded"])) <= 1.01 * ax.guard_error
+    assert np.any(err["plain"] > 10 * cap)  # the test has bite: the range's fit alone leaves the cap
+    assert ax.max_error < ax.quartic_error
+
+
 def test_fits_are_reproducible():
     """The same input gives the same coefficients, bit for bit (the search has many local minima;
     scipy's MINPACK differs in the last bit from run to run, which would change the fit)."""
