@@ -88,3 +88,50 @@ def approximation_budget(xml, approximations) -> dict[str, tuple[float, float]]:
     for b in range(1, m.nbody):  # parents come before children in MuJoCo's body order
         total[b] += total[m.body_parentid[b]]
     return {m.body(b).name: (float(total[b, 0]), float(total[b, 1])) for b in range(1, m.nbody)}
+
+
+def pin_pendulum(name: str, q_range: tuple[float, float] = (-1.0, 1.5),
+                 arm_com: tuple[float, float, float] = (0.15, 0.0, 0.0)):
+    """An OpenSim model ``name``: ground -> body "arm" (1 kg, centre of mass ``arm_com`` m,
+    inertia 0.01 kg m²) on PinJoint "pin" at the origin, whose coordinate "q" has range
+    ``q_range`` (rad). Returns ``(model, arm)``."""
+    import opensim as osim
+
+    m = osim.Model()
+    m.setName(name)
+    arm = osim.Body("arm", 1.0, osim.Vec3(*arm_com), osim.Inertia(0.01, 0.01, 0.01))
+    m.addBody(arm)
+    j = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
+    c = j.updCoordinate()
+    c.setName("q")
+    c.setRangeMin(q_range[0])
+    c.setRangeMax(q_range[1])
+    m.addJoint(j)
+    return m, arm
+
+
+def with_moving_point(text: str, point: str, body: str, locations: tuple[str, str, str]) -> str:
+    """The .osim ``text`` with PathPoint ``point`` made a MovingPathPoint on ``body`` whose x, y
+    and z locations are the function elements ``locations`` (XML text, m), each driven by the
+    coordinate /jointset/pin/q (as text: simpler than OpenSim's API)."""
+    i = text.index(f'<PathPoint name="{point}">')
+    k = text.index("</PathPoint>", i) + len("</PathPoint>")
+    sockets = "".join(f"<socket_{a}_coordinate>/jointset/pin/q</socket_{a}_coordinate>" for a in "xyz")
+    functions = "".join(f"<{a}_location>{f}</{a}_location>" for a, f in zip("xyz", locations, strict=True))
+    return (text[:i] + f'<MovingPathPoint name="{point}"><socket_parent_frame>/bodyset/{body}'
+            f"</socket_parent_frame>{sockets}{functions}</MovingPathPoint>" + text[k:])
+
+
+def add_three_point_paths(model, arm, names) -> None:
+    """A PathActuator (optimal force 100 N) per name in ``names``, through ``<name>-P1`` (-0.2,
+    0.05, 0) on ground and ``<name>-P2`` (0.1, 0.03, 0) and ``<name>-P3`` (0.3, 0, 0) on ``arm`` (m)."""
+    import opensim as osim
+
+    for name in names:
+        pa = osim.PathActuator()
+        pa.setName(name)
+        pa.setOptimalForce(100)
+        pa.addNewPathPoint(f"{name}-P1", model.getGround(), osim.Vec3(-0.2, 0.05, 0))
+        pa.addNewPathPoint(f"{name}-P2", arm, osim.Vec3(0.1, 0.03, 0))
+        pa.addNewPathPoint(f"{name}-P3", arm, osim.Vec3(0.3, 0.0, 0))
+        model.addForce(pa)

@@ -10,6 +10,7 @@ gets a :class:`_Context` holding it and the :class:`~o2m.convert.builder.MjcfBui
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import mujoco
@@ -308,3 +309,31 @@ def _tendon_row(m: mujoco.MjModel, d: mujoco.MjData, t: int) -> np.ndarray:
     row[m.ten_J_colind[a:a + n]] = tj[a:a + n]
     return row
 
+
+
+def worst_tendon_spring_error(model: mujoco.MjModel, builder: MjcfBuilder, tendon: str,
+                              expected_tension: Callable[[float], float]) -> float:
+    """Worst |MuJoCo's spring tension of ``tendon`` - ``expected_tension(length)``| (N) over
+    :data:`N_POSES` random poses, with every other spring and damper off; the tension is read
+    from ``qfrc_passive`` through the tendon's Jacobian (positive when pulling), lengths in m."""
+    from o2m.mj.posing import joint_equality_plan, pose_mujoco
+
+    m = _isolated(model)
+    t = model.tendon(tendon).id
+    m.tendon_stiffness[t] = model.tendon_stiffness[t]
+    m.tendon_stiffnesspoly[t] = model.tendon_stiffnesspoly[t]
+    d = mujoco.MjData(m)
+    plan = joint_equality_plan(m)
+    worst = 0.0
+    for values in _random_values(builder, N_POSES):
+        pose_mujoco(m, d, values, plan=plan)
+        d.qvel[:] = 0.0
+        mujoco.mj_fwdPosition(m, d)
+        mujoco.mj_fwdVelocity(m, d)
+        jac = _tendon_row(m, d, t)
+        jj = float(jac @ jac)
+        if jj < 1e-12:
+            continue
+        tension = -float(jac @ d.qfrc_passive) / jj  # qfrc_passive = J^T f, f < 0 when pulling
+        worst = max(worst, abs(tension - expected_tension(float(d.ten_length[t]))))
+    return worst

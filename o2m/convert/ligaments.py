@@ -21,10 +21,8 @@ from o2m.convert.force_context import (
     SideFit,
     _Context,
     _independent_ranges,
-    _isolated,
     _number,
-    _random_values,
-    _tendon_row,
+    worst_tendon_spring_error,
 )
 from o2m.convert.limit_forces import fit_deadband
 from o2m.convert.records import Approximation
@@ -105,25 +103,6 @@ def measure_ligaments(out: ForceConversion, model: mujoco.MjModel, builder: Mjcf
 
 def _measure_ligament(lig: Ligament, model: mujoco.MjModel, builder: MjcfBuilder) -> float:
     """Worst |MuJoCo tendon force - OpenSim tension at MuJoCo's tendon length| (N) over random poses."""
-    from o2m.mj.posing import joint_equality_plan, pose_mujoco
-
-    m = _isolated(model)
-    t = model.tendon(lig.tendon).id
-    m.tendon_stiffness[t] = model.tendon_stiffness[t]
-    m.tendon_stiffnesspoly[t] = model.tendon_stiffnesspoly[t]
-    d = mujoco.MjData(m)
-    plan = joint_equality_plan(m)
-    worst = 0.0
-    for values in _random_values(builder, N_POSES):
-        pose_mujoco(m, d, values, plan=plan)
-        d.qvel[:] = 0.0
-        mujoco.mj_fwdPosition(m, d)
-        mujoco.mj_fwdVelocity(m, d)
-        jac = _tendon_row(m, d, t)
-        jj = float(jac @ jac)
-        if jj < 1e-12:
-            continue
-        tension = -float(jac @ d.qfrc_passive) / jj  # qfrc_passive = J^T f, f < 0 when pulling
-        worst = max(worst, abs(tension - float(lig.tension(np.array([d.ten_length[t]]))[0])))
-    return worst
+    return worst_tendon_spring_error(model, builder, lig.tendon,
+                                     lambda length: float(lig.tension(np.array([length]))[0]))
 

@@ -24,11 +24,9 @@ from o2m.convert.force_context import (
     ForceConversion,
     Spring,
     _Context,
-    _isolated,
     _number,
-    _random_values,
-    _tendon_row,
     _vector,
+    worst_tendon_spring_error,
 )
 from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
@@ -79,33 +77,10 @@ def measure_springs(out: ForceConversion, model: mujoco.MjModel, builder: MjcfBu
     """Record each spring's worst |MuJoCo tendon tension - stiffness (L - rest_length)| (N) over
     random poses in ``builder.result.approximations`` (round-off for the exact mapping)."""
     for spring in out.springs:
-        m = _isolated(model)
-        t = model.tendon(spring.tendon).id
-        m.tendon_stiffness[t] = model.tendon_stiffness[t]
-        m.tendon_stiffnesspoly[t] = model.tendon_stiffnesspoly[t]
-        worst = _worst_tension_error(spring, m, t, builder)
+        worst = worst_tendon_spring_error(
+            model, builder, spring.tendon, lambda length, sp=spring: sp.stiffness * (length - sp.rest_length))
         builder.result.approximations.append(Approximation(
             "PointToPointSpring", spring.name,
             f"a spring on spatial tendon '{spring.tendon}' between its two points: stiffness "
             f"{spring.stiffness:g} N/m, springlength {spring.rest_length:g} m", worst, "N",
             f"MuJoCo's tendon tension against stiffness (L - rest_length) at {N_POSES} poses"))
-
-
-def _worst_tension_error(spring: Spring, m: mujoco.MjModel, t: int, builder: MjcfBuilder) -> float:
-    from o2m.mj.posing import joint_equality_plan, pose_mujoco
-
-    d = mujoco.MjData(m)
-    plan = joint_equality_plan(m)
-    worst = 0.0
-    for values in _random_values(builder, N_POSES):
-        pose_mujoco(m, d, values, plan=plan)
-        d.qvel[:] = 0.0
-        mujoco.mj_fwdPosition(m, d)
-        mujoco.mj_fwdVelocity(m, d)
-        jac = _tendon_row(m, d, t)
-        jj = float(jac @ jac)
-        if jj < 1e-12:
-            continue
-        tension = -float(jac @ d.qfrc_passive) / jj  # qfrc_passive = J^T f, f < 0 when pulling
-        worst = max(worst, abs(tension - spring.stiffness * (float(d.ten_length[t]) - spring.rest_length)))
-    return worst

@@ -22,7 +22,7 @@ import pytest
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.converter import convert
 from o2m.mj.posing import joint_equality_plan, pose_mujoco
-from tests.helpers import convert_options
+from tests.helpers import add_three_point_paths, convert_options, pin_pendulum, with_moving_point
 
 osim.Logger.setLevelString("error")
 
@@ -37,36 +37,16 @@ SLIDES = {"line": 1, "plane": 2, "curve": 3}
 
 
 def _model(path) -> None:
-    m = osim.Model()
-    m.setName("carriers")
-    arm = osim.Body("arm", 1.0, osim.Vec3(0.15, 0, 0), osim.Inertia(0.01, 0.01, 0.01))
-    m.addBody(arm)
-    j = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
-    c = j.updCoordinate()
-    c.setName("q")
-    c.setRangeMin(-1.0)
-    c.setRangeMax(1.5)
-    m.addJoint(j)
-    for name in MOVING:
-        pa = osim.PathActuator()
-        pa.setName(name)
-        pa.setOptimalForce(100)
-        pa.addNewPathPoint(f"{name}-P1", m.getGround(), osim.Vec3(-0.2, 0.05, 0))
-        pa.addNewPathPoint(f"{name}-P2", arm, osim.Vec3(0.1, 0.03, 0))
-        pa.addNewPathPoint(f"{name}-P3", arm, osim.Vec3(0.3, 0.0, 0))
-        m.addForce(pa)
+    m, arm = pin_pendulum("carriers")
+    add_three_point_paths(m, arm, MOVING)
     m.finalizeConnections()
     m.initSystem()
     m.printToXML(str(path))
     text = path.read_text()
-    for name, coefs in MOVING.items():  # P2 made a MovingPathPoint (as text: simpler than the API)
-        i = text.index(f'<PathPoint name="{name}-P2">')
-        k = text.index("</PathPoint>", i) + len("</PathPoint>")
-        axes = "".join(f"<socket_{a}_coordinate>/jointset/pin/q</socket_{a}_coordinate>" for a in "xyz")
-        functions = "".join(f"<{a}_location><PolynomialFunction><coefficients>{c}</coefficients>"
-                            f"</PolynomialFunction></{a}_location>" for a, c in zip("xyz", coefs, strict=True))
-        text = text[:i] + (f'<MovingPathPoint name="{name}-P2"><socket_parent_frame>/bodyset/arm'
-                           f"</socket_parent_frame>{axes}{functions}</MovingPathPoint>") + text[k:]
+    for name, coefs in MOVING.items():  # P2 made a MovingPathPoint
+        polynomials = tuple(f"<PolynomialFunction><coefficients>{c}</coefficients></PolynomialFunction>"
+                            for c in coefs)
+        text = with_moving_point(text, f"{name}-P2", "arm", polynomials)
     path.write_text(text)
 
 

@@ -25,7 +25,7 @@ from o2m.convert.converter import convert
 from o2m.mj.tendons import mujoco_moment_arms
 from o2m.osim.pair import ModelPair
 from o2m.validate.muscles import compare_muscles
-from tests.helpers import convert_options
+from tests.helpers import add_three_point_paths, convert_options, pin_pendulum, with_moving_point
 
 osim.Logger.setLevelString("error")
 
@@ -33,37 +33,16 @@ MOVING = {"big": "0.01 0.03 0.1", "small": "0.002 0.1"}  # PolynomialFunction co
 
 
 def _model(path) -> None:
-    m = osim.Model()
-    m.setName("moving_pendulum")
-    arm = osim.Body("arm", 1.0, osim.Vec3(0.15, 0, 0), osim.Inertia(0.01, 0.01, 0.01))
-    m.addBody(arm)
-    j = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
-    c = j.updCoordinate()
-    c.setName("q")
-    c.setRangeMin(-1.0)
-    c.setRangeMax(1.5)
-    m.addJoint(j)
-    for name in MOVING:
-        pa = osim.PathActuator()
-        pa.setName(name)
-        pa.setOptimalForce(100)
-        pa.addNewPathPoint(f"{name}-P1", m.getGround(), osim.Vec3(-0.2, 0.05, 0))
-        pa.addNewPathPoint(f"{name}-P2", arm, osim.Vec3(0.1, 0.03, 0))
-        pa.addNewPathPoint(f"{name}-P3", arm, osim.Vec3(0.3, 0.0, 0))
-        m.addForce(pa)
+    m, arm = pin_pendulum("moving_pendulum")
+    add_three_point_paths(m, arm, MOVING)
     m.finalizeConnections()
     m.initSystem()
     m.printToXML(str(path))
     text = path.read_text()
-    for name, coefs in MOVING.items():  # P2 made a MovingPathPoint (as text: simpler than the API)
-        i = text.index(f'<PathPoint name="{name}-P2">')
-        k = text.index("</PathPoint>", i) + len("</PathPoint>")
-        axis = "".join(f"<socket_{a}_coordinate>/jointset/pin/q</socket_{a}_coordinate>" for a in "xyz")
-        moving = (f'<MovingPathPoint name="{name}-P2"><socket_parent_frame>/bodyset/arm</socket_parent_frame>{axis}'
-                  f"<x_location><PolynomialFunction><coefficients>{coefs}</coefficients></PolynomialFunction>"
-                  f"</x_location><y_location><Constant><value>0.03</value></Constant></y_location>"
-                  f"<z_location><Constant><value>0</value></Constant></z_location></MovingPathPoint>")
-        text = text[:i] + moving + text[k:]
+    for name, coefs in MOVING.items():  # P2 made a MovingPathPoint along x
+        text = with_moving_point(text, f"{name}-P2", "arm", (
+            f"<PolynomialFunction><coefficients>{coefs}</coefficients></PolynomialFunction>",
+            "<Constant><value>0.03</value></Constant>", "<Constant><value>0</value></Constant>"))
     path.write_text(text)
 
 

@@ -34,7 +34,7 @@ from o2m.mj.posing import pose_mujoco
 from o2m.validate.jumps import sweep_jumps
 from o2m.validate.kinematics import compare_kinematics
 from o2m.validate.muscles import compare_muscles
-from tests.helpers import convert_options, model_file
+from tests.helpers import convert_options, model_file, pin_pendulum
 
 osim.Logger.setLevelString("error")
 
@@ -43,16 +43,7 @@ QSTAR = brentq(lambda q: 0.04 * math.sin(q) - 0.02 * (0.3 + 0.2 * math.cos(q)), 
 
 
 def _pendulum(path, kind: str) -> None:
-    m = osim.Model()
-    m.setName(f"pendulum_{kind}")
-    arm = osim.Body("arm", 1.0, osim.Vec3(0.15, 0, 0), osim.Inertia(0.01, 0.01, 0.01))
-    m.addBody(arm)
-    j = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
-    c = j.updCoordinate()
-    c.setName("q")
-    c.setRangeMin(-1.0 if kind == "conditional" or kind.endswith("_all") else 0.0)
-    c.setRangeMax(1.5)
-    m.addJoint(j)
+    m, arm = pin_pendulum(f"pendulum_{kind}", (-1.0 if kind == "conditional" or kind.endswith("_all") else 0.0, 1.5))
     pa = osim.PathActuator()
     pa.setName("m")
     pa.setOptimalForce(100)
@@ -310,16 +301,7 @@ def _two_segments_cut_one_sphere(path) -> None:
     (-0.1, 0.03, 0) and P2 (0.1, 0.03, 0) on ground and P3 (-0.1, -0.05, 0) on the arm, with a
     sphere of radius 0.04 m at the origin (quadrant all). Both segments cut the sphere; OpenSim
     wraps the first that does (P1-P2), while P2-P3 passes nearer its centre (9 mm at q = 0)."""
-    m = osim.Model()
-    m.setName("two_segments")
-    arm = osim.Body("arm", 1.0, osim.Vec3(0.05, 0, 0), osim.Inertia(0.01, 0.01, 0.01))
-    m.addBody(arm)
-    j = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
-    c = j.updCoordinate()
-    c.setName("q")
-    c.setRangeMin(-0.3)
-    c.setRangeMax(0.3)
-    m.addJoint(j)
+    m, arm = pin_pendulum("two_segments", (-0.3, 0.3), arm_com=(0.05, 0.0, 0.0))
     pa = osim.PathActuator()
     pa.setName("m")
     pa.setOptimalForce(100)
