@@ -197,7 +197,8 @@ def muscle_activations(model: mujoco.MjModel, muscles: Sequence[str], excitation
         initial: activations at the first sample, shape (..., len(muscles)).
     Returns:
         shape (..., T, len(muscles)): the activation at every sample, as ``mj_step`` computes it
-        (``mju_muscleDynamics`` without smoothing, Euler), without simulating the body.
+        (``mju_muscleDynamics`` without smoothing, Euler, then clamped to ``actrange`` where the
+        actuator's activation is limited), without simulating the body.
     """
     ids = muscle_actuator_ids(model, muscles)
     t_act, t_deact = model.actuator_dynprm[ids, 0], model.actuator_dynprm[ids, 1]
@@ -209,11 +210,14 @@ def muscle_activations(model: mujoco.MjModel, muscles: Sequence[str], excitation
     act = np.asarray(initial, float).copy()
     out[..., 0, :] = act
     dt = model.opt.timestep
+    limited = model.actuator_actlimited[ids].astype(bool)
+    act_lo = np.where(limited, model.actuator_actrange[ids, 0], -np.inf)
+    act_hi = np.where(limited, model.actuator_actrange[ids, 1], np.inf)
     for k in range(ctrl.shape[-2]):
         c = ctrl[..., k, :]
         a = np.clip(act, 0.0, 1.0)
         tau = np.where(c - act > 0, t_act * (0.5 + 1.5 * a), t_deact / (0.5 + 1.5 * a))
-        act = act + dt * (c - act) / np.maximum(tau, mujoco.mjMINVAL)
+        act = np.clip(act + dt * (c - act) / np.maximum(tau, mujoco.mjMINVAL), act_lo, act_hi)
         out[..., k + 1, :] = act
     return out
 
