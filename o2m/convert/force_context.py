@@ -310,7 +310,6 @@ def _tendon_row(m: mujoco.MjModel, d: mujoco.MjData, t: int) -> np.ndarray:
     return row
 
 
-
 def worst_tendon_spring_error(model: mujoco.MjModel, builder: MjcfBuilder, tendon: str,
                               expected_tension: Callable[[float], float]) -> float:
     """Worst |MuJoCo's spring tension of ``tendon`` - ``expected_tension(length)``| (N) over

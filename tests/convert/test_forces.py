@@ -402,6 +402,16 @@ def test_limit_forces_match_opensim(synthetic, coord):
         assert peak > 10.0 and "coupled" in a.detail
 
 
+def _add_joints(model, joints, ranges) -> None:
+    """Add one-coordinate ``joints`` to ``model``, each coordinate with its (min, max, default)."""
+    for j, (lo, hi, q0) in zip(joints, ranges, strict=True):
+        model.addJoint(j)
+        c = j.upd_coordinates(0)
+        c.setRangeMin(lo)
+        c.setRangeMax(hi)
+        c.setDefaultValue(q0)
+
+
 def _build_springs(path: Path) -> Path:
     """ground -Pin p1-> s1 -Slider p2-> s2, a PointToPointSpring from ground to s2 (stretched and
     compressed over the range) and one from s1 to s2."""
@@ -415,12 +425,7 @@ def _build_springs(path: Path) -> Path:
                             _v(0.0, 0.3, 0.0)),
               osim.SliderJoint("p2", s1, _v(0.0, -0.3, 0.05), _v(0.0, 0.0, -1.2), s2, _v(0.0, 0.0, 0.0),
                                _v(0.1, 0.2, 0.0))]
-    for j, (lo, hi, q0) in zip(joints, [(-1.0, 1.2, 0.2), (-0.2, 0.3, 0.05)], strict=True):
-        m.addJoint(j)
-        c = j.upd_coordinates(0)
-        c.setRangeMin(lo)
-        c.setRangeMax(hi)
-        c.setDefaultValue(q0)
+    _add_joints(m, joints, [(-1.0, 1.2, 0.2), (-0.2, 0.3, 0.05)])
     for name, b1, p1, b2, p2, k, rest in [("to_ground", m.getGround(), (0.3, 0.4, -0.1), s2, (0.02, 0.01, 0.0),
                                            150.0, 0.5),
                                           ("between", s1, (-0.05, -0.1, 0.02), s2, (0.01, 0.03, -0.02), 80.0, 0.3)]:
@@ -487,12 +492,7 @@ def _build_bushings(path: Path) -> Path:
                             _v(0.0, 0.0, 0.0)),
               osim.PinJoint("k2", c1, _v(0.02, -0.3, 0.01), _v(0.3, -0.2, 0.5), c2, _v(0.0, 0.1, -0.02),
                             _v(0.1, 0.4, -0.2))]
-    for j, (lo, hi, q0) in zip(joints, [(-1.0, 1.0, 0.1), (-1.2, 1.4, 0.3)], strict=True):
-        m.addJoint(j)
-        c = j.upd_coordinates(0)
-        c.setRangeMin(lo)
-        c.setRangeMax(hi)
-        c.setDefaultValue(q0)
+    _add_joints(m, joints, [(-1.0, 1.0, 0.1), (-1.2, 1.4, 0.3)])
     k2 = m.getJointSet().get("k2")
     parent, child = k2.getParentFrame().findTransformInBaseFrame(), k2.getChildFrame().findTransformInBaseFrame()
 
