@@ -286,9 +286,10 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
         err.append(np.mean(np.abs(r.coordinates - exp.reference[i]), axis=0))
         size.append(np.mean(np.abs(r.correction), axis=0))
         q.append(r.coordinates)
-    out = np.array(err), np.array(size), np.array(q[:keep])
+    # float32 trajectories, as cached, so a run that computes them writes what a run that loads them does
+    out = np.array(err), np.array(size), np.array(q[:keep], dtype=np.float32)
     if cache is not None:
-        np.savez_compressed(cache, key=key, err=out[0], size=out[1], q=out[2].astype(np.float32))
+        np.savez_compressed(cache, key=key, err=out[0], size=out[1], q=out[2])
     return out
 
 

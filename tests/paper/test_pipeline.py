@@ -1,12 +1,17 @@
-"""Pieces of the paper's pipeline that need no dataset: the corrections' cache key."""
+"""Pieces of the paper's pipeline that need no dataset: the corrections' cache key and cache."""
 
 from __future__ import annotations
 
 import copy
 
-import mujoco
+from dataclasses import replace
+from types import SimpleNamespace
 
-from o2m.paper.pipeline import FULL, QUICK, correction_key
+import mujoco
+import numpy as np
+
+from o2m.mj.simulate import initial_state
+from o2m.paper.pipeline import FULL, QUICK, correct_sets, correction_key
 
 MODEL = """
 <mujoco><worldbody><body><joint name="j" type="hinge" damping="{d}"/><geom size="0.1" mass="1"/></body></worldbody>
@@ -23,3 +28,34 @@ def test_correction_key_changes_with_any_model_field_sets_or_budget():
     assert correction_key(m, [1, 3], FULL, True) != key
     assert correction_key(m, [1, 2], QUICK, True) != key
     assert correction_key(m, [1, 2], FULL, False) != key
+
+
+MUSCLE_PENDULUM = """
+<mujoco>
+  <worldbody>
+    <body name="link" pos="0 0 1">
+      <joint name="swing" type="hinge" axis="0 1 0" damping="0.05"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1"/>
+      <site name="tip" pos="0.5 0 0"/>
+    </body>
+    <site name="anchor" pos="0.3 0 1.4"/>
+  </worldbody>
+  <tendon><spatial name="lifter"><site site="anchor"/><site site="tip"/></spatial></tendon>
+  <actuator><muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/></actuator>
+</mujoco>
+"""
+
+
+def test_corrections_computed_equal_corrections_loaded_from_the_cache(tmp_path):
+    model = mujoco.MjModel.from_xml_string(MUSCLE_PENDULUM)
+    n_t = 60
+    excitation = 0.3 + 0.2 * np.sin(np.linspace(0, 6, n_t))[None, :, None]  # (1, T, 1)
+    reference = np.linspace(0.3, 0.1, n_t)[None, :, None]
+    exp = SimpleNamespace(init=initial_state(model, {"swing": 0.3})[None], muscles=["lifter"], dofs=["swing"],
+                          dataset=SimpleNamespace(activations=SimpleNamespace(values=excitation)), reference=reference)
+    settings = replace(QUICK, correction_generations=2, correction_sweeps=1)
+    cache = tmp_path / "corrections.npz"
+    computed = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache)
+    loaded = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache)
+    for a, b in zip(computed, loaded, strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
