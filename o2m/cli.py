@@ -125,7 +125,8 @@ def cmd_dataset(a: argparse.Namespace) -> int:
     """Generate the MoBL-ARMS excitation sets and their OpenSim reference trajectories."""
     from o2m.paper.dataset import make_dataset
 
-    ds = make_dataset(a.out, n_sets=a.sets, seed=a.seed, timeout=a.timeout, max_workers=a.workers)
+    ds = make_dataset(a.out, n_sets=a.sets, seed=a.seed, timeout=a.timeout, max_workers=a.workers,
+                      opensim_log=a.opensim_log)
     fails = ds.failures()
     print(f"{len(ds.ok)} sets, {int(ds.ok.sum())} succeeded, {len(fails)} failed; "
           f"split {len(ds.train)} train / {len(ds.test)} test / {len(ds.validation)} validation -> {a.out}")
@@ -263,6 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--seed", type=int, default=2020)
     d.add_argument("--timeout", type=float, default=600.0, help="wall-clock limit per OpenSim run, s")
     d.add_argument("--workers", type=int, default=None, help="parallel OpenSim processes (default: all cores)")
+    d.add_argument("--opensim-log", default=None, help="OpenSim's log file (default: OUT/runs/opensim.log)")
     d.set_defaults(func=cmd_dataset)
     pp = sub.add_parser("paper", help="the whole paper: references, conversion, fitting, corrections, speed, figures")
     pp.add_argument("--quick", action="store_true", help="small budgets (minutes); results go to OUT/quick/")

@@ -68,6 +68,7 @@ def opensim_log(log_file: str | os.PathLike[str], level: str = "info") -> Iterat
         getattr(sys, name).flush()
     _flush_c_streams()
     saved = {fd: os.dup(fd) for fd in names}
+    saved_level = osim.Logger.getLevelString()  # a block nested in another restores the outer one's level
     python_streams = {name: getattr(sys, name) for fd, name in names.items() if _fileno(getattr(sys, name)) == fd}
     log_fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     try:
@@ -80,7 +81,7 @@ def opensim_log(log_file: str | os.PathLike[str], level: str = "info") -> Iterat
         osim.Logger.setLevelString(level)
         yield path
     finally:
-        osim.Logger.setLevelString("error")
+        osim.Logger.setLevelString(saved_level)
         _flush_c_streams()
         for fd in names:
             os.dup2(saved[fd], fd)

@@ -111,8 +111,11 @@ def _load_activations(path: Path) -> ActivationSets:
 def make_dataset(out_dir: str | os.PathLike[str], *, n_sets: int = 100, seed: int = DEFAULT_SEED,
                  model: str = MOBL_MODEL, timeout: float = 600.0, executor=None, max_workers: int | None = None,
                  settings: IntegratorSettings = IntegratorSettings(),  # noqa: B008 (frozen)
-                 progress: bool = True) -> Dataset:
-    """Generate excitations, run them in OpenSim (resuming from ``<out>/runs/``), write the dataset."""
+                 progress: bool = True, opensim_log: str | os.PathLike[str] | None = None) -> Dataset:
+    """Generate excitations, run them in OpenSim (resuming from ``<out>/runs/``), write the dataset.
+
+    Every OpenSim run appends its log to ``opensim_log`` (default ``<out>/runs/opensim.log``).
+    """
     import concurrent.futures as cf
 
     from tqdm.auto import tqdm
@@ -122,12 +125,14 @@ def make_dataset(out_dir: str | os.PathLike[str], *, n_sets: int = 100, seed: in
     out = Path(out_dir)
     runs_dir = out / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
+    log_file = Path(opensim_log) if opensim_log is not None else runs_dir / "opensim.log"
     osim_path = models.fetch_model(model, progress=False)
     init = read_initial_state(models.fetch(MOBL_INITIAL_STATE))
     opensim = runtime.opensim()
-    m = opensim.Model(str(osim_path))
-    muscles = [m.getMuscles().get(i).getName() for i in range(m.getMuscles().getSize())]
-    del m
+    with runtime.opensim_log(log_file):
+        m = opensim.Model(str(osim_path))
+        muscles = [m.getMuscles().get(i).getName() for i in range(m.getMuscles().getSize())]
+        del m
     sets = generate_activations(muscles, n_sets, seed=seed)
     _save_activations(out / "activations.npz", sets)
 
@@ -137,7 +142,8 @@ def make_dataset(out_dir: str | os.PathLike[str], *, n_sets: int = 100, seed: in
         executor = cf.ProcessPoolExecutor(max_workers=max_workers or os.cpu_count())
     try:
         futures = {executor.submit(run_isolated, str(osim_path), sets.times, sets.values[i], muscles,
-                                   initial_state=init, settings=settings, timeout=timeout): i for i in todo}
+                                   initial_state=init, settings=settings, timeout=timeout,
+                                   opensim_log=log_file): i for i in todo}
         bar = tqdm(total=n_sets, initial=n_sets - len(todo), desc="OpenSim runs", unit="run", disable=not progress)
         for fut in cf.as_completed(futures):
             i = futures[fut]

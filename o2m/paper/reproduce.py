@@ -66,19 +66,21 @@ def reproduce(
     log_file.unlink(missing_ok=True)
     with runtime.opensim_log(log_file):
         run = _reproduce(data, out, Path(figures), quick=quick, regenerate_opensim=regenerate_opensim, refit=refit,
-                         executor=executor, n_sets=n_sets, seed=seed, timeout=timeout, log=log)
+                         executor=executor, n_sets=n_sets, seed=seed, timeout=timeout, log=log, log_file=log_file)
     run.opensim_log = log_file
     return run
 
 
 def _reproduce(data: Path, out: Path, figures: Path, *, quick: bool, regenerate_opensim: bool, refit: bool,
-               executor, n_sets: int, seed: int, timeout: float, log: Callable[[str], None]) -> PaperRun:
+               executor, n_sets: int, seed: int, timeout: float, log: Callable[[str], None],
+               log_file: Path) -> PaperRun:
     """The steps of :func:`reproduce`, with OpenSim's log already redirected."""
     if regenerate_opensim:
         if quick:
             data = out / "quick-data"
         log(f"[1/4] regenerating OpenSim references into {data} ({4 if quick else n_sets} sets)")
-        make_dataset(data, n_sets=4 if quick else n_sets, seed=seed, timeout=timeout, executor=executor)
+        make_dataset(data, n_sets=4 if quick else n_sets, seed=seed, timeout=timeout, executor=executor,
+                     opensim_log=log_file)
     else:
         log(f"[1/4] using the stored OpenSim references in {data}")
     ds = load_dataset(data)

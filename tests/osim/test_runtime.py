@@ -38,6 +38,19 @@ def test_opensim_log_sends_opensims_lines_to_the_file_and_python_still_prints(tm
     assert runtime.opensim().Logger.getLevelString() == "Error"  # restored after the block
 
 
+def test_a_nested_opensim_log_gives_the_outer_block_its_level_back(tmp_path, capfd):
+    osim = model_file(ARM26)
+    outer, inner = tmp_path / "outer.log", tmp_path / "inner.log"
+    with runtime.opensim_log(outer):
+        with runtime.opensim_log(inner):
+            runtime.load_model(osim)
+        runtime.load_model(osim)  # still at the outer block's info level, into the outer file
+    assert "Loaded model" in inner.read_text() and "Loaded model" in outer.read_text()
+    assert runtime.opensim().Logger.getLevelString() == "Error"
+    out, err = capfd.readouterr()
+    assert not OPENSIM_LINE.search(out + err)
+
+
 def test_opensim_log_restores_the_terminal_after_an_error(tmp_path, capfd):
     osim = model_file(ARM26)
     try:
