@@ -8,7 +8,16 @@ import mujoco
 import numpy as np
 
 from o2m.mj.simulate import controls_from_forces, force_driven
-from o2m.paper.floor import crossing, generalized_force_run, tendon_force_run
+from o2m.paper.floor import (
+    arm_corrected_run,
+    arm_slopes,
+    arms_along,
+    crossing,
+    generalized_force_run,
+    mujoco_arms,
+    muscle_feedback_run,
+    tendon_force_run,
+)
 
 PENDULUM = """
 <mujoco>
@@ -44,7 +53,8 @@ def _experiment(tmp_path):
         q.append(data.qpos[0])
         v.append(data.qvel[0])
     ds = SimpleNamespace(muscle_names=["lifter"], tendon_forces=forces, coordinate_names=["swing"],
-                         coordinates=np.array(q)[None, :, None], speeds=np.array(v)[None, :, None])
+                         coordinates=np.array(q)[None, :, None], speeds=np.array(v)[None, :, None],
+                         opensim_activations=np.full((1, len(t), 1), 0.5))
     exp = SimpleNamespace(dataset=ds, muscles=["lifter"], dofs=["swing"], xml=xml)
     return exp, model
 
@@ -60,13 +70,79 @@ def test_both_runs_follow_the_trajectory_their_own_forces_made(tmp_path):
     assert np.abs(none_frozen - live).max() < 1e-9
 
 
+def _shifted(exp, dq: float):
+    """``exp`` with its recorded trajectory started ``dq`` rad off (the rest unchanged)."""
+    shifted = SimpleNamespace(**{**vars(exp), "dataset": SimpleNamespace(**vars(exp.dataset))})
+    start = exp.dataset.coordinates.copy()
+    start[:, 0] += dq
+    shifted.dataset.coordinates = np.concatenate([start[:, :1], exp.dataset.coordinates[:, 1:]], axis=1)
+    return shifted
+
+
 def test_frozen_moment_arms_ignore_the_pose_the_live_ones_follow(tmp_path):
     """Started 0.2 rad off, the live run's torque changes with its pose, the frozen run's does not."""
     exp, model = _experiment(tmp_path)
-    shifted = SimpleNamespace(**{**vars(exp), "dataset": SimpleNamespace(**vars(exp.dataset))})
-    start = exp.dataset.coordinates.copy()
-    start[:, 0] += 0.2
-    shifted.dataset.coordinates = np.concatenate([start[:, :1], exp.dataset.coordinates[:, 1:]], axis=1)
+    shifted = _shifted(exp, 0.2)
     live, frozen = tendon_force_run(shifted, model, [0]), generalized_force_run(shifted, model, [0])
     assert np.abs(live - frozen).max() > 1e-3
     assert crossing(exp, model, "swing") == ["lifter"]
+
+
+def test_moment_arms_along_the_recorded_states_report_an_offset_and_its_torque(tmp_path):
+    exp, model = _experiment(tmp_path)
+    arms = mujoco_arms(model, ["lifter"], ["swing"])
+    along = arms_along(exp, ["lifter"], [0], 10, lambda pose: arms(pose) - 1e-4, arms)  # "OpenSim" 0.1 mm shorter
+    assert len(along.samples) == 26 and along.mujoco.shape == (26, 1, 1)
+    (muscle, dof, rms, worst, _), = along.rows()
+    assert (muscle, dof) == ("lifter", "swing") and abs(rms - 0.1) < 1e-9 and abs(worst - 0.1) < 1e-9
+    opensim, mujoco_ = along.torques()
+    assert np.allclose(mujoco_ - opensim, 1e-4 * along.forces)
+    h = 1e-6  # the Jacobian moment arm is -dL/dq
+    q0 = float(exp.dataset.coordinates[0, 0, 0])
+    data = mujoco.MjData(model)
+    lengths = []
+    for q in (q0 - h, q0 + h):
+        data.qpos[0] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_tendon(model, data)
+        lengths.append(data.ten_length[0])
+    assert abs(along.mujoco[0, 0, 0] + (lengths[1] - lengths[0]) / (2 * h)) < 1e-8
+
+
+def test_arm_slopes_are_central_differences_about_each_coordinate():
+    def arms(pose):  # (M=2, C=1): x² y and sin x
+        return np.array([[pose["x"] ** 2 * pose["y"]], [np.sin(pose["x"])]])
+    slopes = arm_slopes(arms, {"x": 0.3, "y": 2.0}, ["x", "y"], h=1e-5)
+    assert slopes.shape == (2, 1, 2)
+    assert np.allclose(slopes[:, 0], [[1.2, 0.09], [np.cos(0.3), 0.0]], atol=1e-8)
+
+
+def test_a_moment_arm_correction_changes_the_live_run_by_its_torque(tmp_path):
+    exp, model = _experiment(tmp_path)
+    live = tendon_force_run(exp, model, [0])
+    unchanged = arm_corrected_run(exp, model, [0], ["lifter"], lambda pose: np.zeros((1, 1)))
+    assert np.abs(unchanged - live).max() < 1e-12
+    arms = mujoco_arms(model, ["lifter"], ["swing"])
+    cancelled = arm_corrected_run(exp, model, [0], ["lifter"], lambda pose: -arms(pose))  # no muscle torque left
+    unpowered = tendon_force_run(SimpleNamespace(**{**vars(exp), "dataset": SimpleNamespace(
+        **{**vars(exp.dataset), "tendon_forces": 0 * exp.dataset.tendon_forces})}), model, [0])
+    assert np.abs(cancelled - unpowered).max() < 1e-9 < np.abs(live - unpowered).max()
+    longer = arm_corrected_run(exp, model, [0], ["lifter"], lambda pose: np.full((1, 1), 1e-3))
+    assert np.abs(longer - live).max() > 1e-3
+
+
+def test_muscle_feedback_vanishes_on_the_recorded_trajectory_and_a_stiff_muscle_pulls_back_to_it(tmp_path):
+    """A 'muscle' pulling harder the longer and the faster-lengthening its tendon (2000 N/m, 50 N s/m
+    at activation 0.5) answers a start 0.2 rad off: the run ends nearer the recorded trajectory than
+    the replay of the recorded forces, which nothing pulls back."""
+    exp, model = _experiment(tmp_path)
+    stiff = PENDULUM.replace('<muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/>',
+                             '<general name="lifter" tendon="lifter" dyntype="filter" dynprm="0.01" '
+                             'gaintype="affine" gainprm="0 -4000 -100"/>')
+    muscle_model = mujoco.MjModel.from_xml_string(stiff)
+    ref = exp.dataset.coordinates
+    assert np.abs(muscle_feedback_run(exp, model, muscle_model, [0]) - ref).max() < 1e-9
+    shifted = _shifted(exp, 0.2)
+    replay, answered = tendon_force_run(shifted, model, [0]), muscle_feedback_run(shifted, model, muscle_model, [0])
+    end = slice(-50, None)
+    assert np.abs(answered[0, end] - ref[0, end]).mean() < 0.2 * np.abs(replay[0, end] - ref[0, end]).mean()
