@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from scipy.stats import spearmanr
 
 from o2m import models
 from o2m.mj.posing import joint_equality_plan, joint_qpos_address, pose_mujoco
@@ -42,7 +43,7 @@ from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment
 
 __all__ = ["EXTENDED", "ArmFunction", "ArmsAlong", "Feedback", "arm_corrected_run", "arm_slopes", "arms_along",
            "crossing", "exact_carrier_run", "generalized_force_run", "generalized_forces", "mujoco_arms",
-           "muscle_feedback_run", "opensim_arms", "opensim_pair", "tendon_force_run"]
+           "muscle_feedback_run", "opensim_arms", "opensim_pair", "replay_instability", "tendon_force_run"]
 
 EXTENDED = 0.1
 """A set extends the elbow to its limit when OpenSim's elbow_flexion goes below this (rad)."""
@@ -307,6 +308,33 @@ def arms_along(exp: Experiment, muscles: list[str], sets: list[int], stride: int
                      np.array([ds.tendon_forces[i, k, cols] for i, k in samples], dtype=float))
 
 
+def replay_instability(exp: Experiment, model: mujoco.MjModel, sets: list[int], stride: int,
+                       dof: str = "elbow_flexion", h: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """How the replayed forces push ``dof`` further the way it moves, every ``stride``-th step of ``sets``.
+
+    Returns the torque slope ``Σ F·∂r/∂q`` (S,) N·m/rad of OpenSim's recorded forces F with MuJoCo's
+    moment arms r about ``dof`` (positive: a deviation grows, as nothing in fixed forces resists it)
+    and the growth rate ``sqrt(slope / I)`` (S,) 1/s where the slope is positive (0 elsewhere), with
+    ``1 / I`` the diagonal of the inverse mass matrix at ``dof`` (the other joints free)."""
+    arms = mujoco_arms(model, list(exp.muscles), [dof])
+    data, plan = mujoco.MjData(model), joint_equality_plan(model)
+    unit = np.zeros(model.nv)
+    unit[model.jnt_dofadr[model.joint(dof).id]] = 1.0
+    ds = exp.dataset
+    slopes, rates = [], []
+    for i in sets:
+        for k in range(0, ds.coordinates.shape[1], stride):
+            pose = dict(zip(ds.coordinate_names, ds.coordinates[i, k].astype(float), strict=True))
+            slope = float(_forces(exp, [i])[0, k] @ arm_slopes(arms, pose, [dof], h)[:, 0, 0])
+            mujoco.mj_setState(model, data, _state(model, exp, i, k, plan), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+            mujoco.mj_forward(model, data)
+            inverse_mass = np.zeros(model.nv)
+            mujoco.mj_solveM(model, data, inverse_mass[None], unit[None])
+            slopes.append(slope)
+            rates.append(np.sqrt(max(slope, 0.0) * float(inverse_mass @ unit)))
+    return np.array(slopes), np.array(rates)
+
+
 def opensim_pair(exp: Experiment) -> ModelPair:
     """The dataset's OpenSim model beside ``exp``'s conversion."""
     return ModelPair(models.fetch_model_with_geometry(exp.dataset.meta["model"], progress=False).osim, exp.xml)
@@ -345,7 +373,8 @@ def _moment_arm_report(exp: Experiment, model: mujoco.MjModel, sets: list[int], 
         if worst > 1e-3:
             print(f"  {muscle:9s} {dof:14s} RMS {rms:.3f} max {worst:.3f} at " +
                   " ".join(f"{d}={v:.3f}" for d, v in pose.items()))
-    print(f"  the other {sum(r[3] <= 1e-3 for r in rows)} (muscle, coordinate) pairs within 0.001 mm")
+    print(f"  the other {sum(r[3] <= 1e-3 for r in rows)} (muscle, coordinate) pairs with an arm over 1 mm: "
+          "within 0.001 mm")
     opensim, mujoco_ = along.torques()
     for c, dof in enumerate(exp.dofs):
         err = mujoco_[:, c] - opensim[:, c]
@@ -370,6 +399,22 @@ def _sensitivity(exp: Experiment, model: mujoco.MjModel, sets: list[int], elbow_
     q_feedback = muscle_feedback_run(exp, model, exp.model, sets)
     print(_row("recorded forces + converted muscles' answer", np.abs(q_feedback - exp.reference[sets])))
     return {"muscle feedback": q_feedback}
+
+
+def _instability_report(exp: Experiment, model: mujoco.MjModel, sets: list[int], ref: np.ndarray,
+                        q_tendon: np.ndarray, stride: int = 10) -> None:
+    """The elbow's :func:`replay_instability` along OpenSim's trajectories, and how each set's mean growth
+    rate ranks with its tendon-force-run error (Spearman), over all sets and those OpenSim keeps off the limit."""
+    slopes, rates = replay_instability(exp, model, sets, stride)
+    elbow = exp.dofs.index("elbow_flexion")
+    err = np.mean(np.abs(q_tendon[:, :, elbow] - ref[:, :, elbow]), axis=1)
+    per_set = rates.reshape(len(sets), -1).mean(axis=1)
+    flexed = ref[:, :, elbow].min(axis=1) >= EXTENDED
+    print(f"elbow torque slope Σ F·∂r/∂q of the replayed forces: median {np.median(slopes):.2f} N·m/rad, positive "
+          f"{100 * np.mean(slopes > 0):.0f} % of the time; growth rate median {np.median(rates):.1f} 1/s; "
+          f"Spearman (set's mean rate, its elbow error) {spearmanr(per_set, err)[0]:.2f} over all "
+          f"{len(sets)} sets, {spearmanr(per_set[flexed], err[flexed])[0]:.2f} over the {int(flexed.sum())} "
+          f"OpenSim keeps above {EXTENDED} rad")
 
 
 def main() -> None:
@@ -399,6 +444,7 @@ def main() -> None:
                np.abs(runs["elbow muscles frozen"] - ref)))
     print(_row("the other muscles frozen, elbow muscles on tendons", np.abs(runs["other muscles frozen"] - ref)))
     runs |= _sensitivity(exp, model, sets, elbow_muscles, runs["tendon forces"], runs["joint forces"])
+    _instability_report(exp, model, sets, ref, runs["tendon forces"])
     if a.moment_arms:
         _moment_arm_report(exp, model, sets, ref, runs["tendon forces"])
     print("elbow muscles:", " ".join(elbow_muscles))

@@ -16,6 +16,7 @@ from o2m.paper.floor import (
     generalized_force_run,
     mujoco_arms,
     muscle_feedback_run,
+    replay_instability,
     tendon_force_run,
 )
 
@@ -146,3 +147,21 @@ def test_muscle_feedback_vanishes_on_the_recorded_trajectory_and_a_stiff_muscle_
     replay, answered = tendon_force_run(shifted, model, [0]), muscle_feedback_run(shifted, model, muscle_model, [0])
     end = slice(-50, None)
     assert np.abs(answered[0, end] - ref[0, end]).mean() < 0.2 * np.abs(replay[0, end] - ref[0, end]).mean()
+
+
+def test_replay_instability_is_the_force_times_the_moment_arm_slope_over_the_inertia(tmp_path):
+    exp, model = _experiment(tmp_path)
+    slopes, rates = replay_instability(exp, model, [0], 50, dof="swing")
+    assert slopes.shape == rates.shape == (6,)
+    data, h = mujoco.MjData(model), 1e-4
+    for j, k in enumerate(range(0, 251, 50)):
+        lengths = []
+        for dq in (-h, 0.0, h):
+            data.qpos[0] = exp.dataset.coordinates[0, k, 0] + dq
+            mujoco.mj_forward(model, data)
+            lengths.append(data.ten_length[0])
+        arm_slope = -(lengths[0] - 2 * lengths[1] + lengths[2]) / h**2  # moment arm -dL/dq, its derivative
+        assert abs(slopes[j] - exp.dataset.tendon_forces[0, k, 0] * arm_slope) < 1e-4 * (1 + abs(slopes[j]))
+        inertia = np.zeros(1)  # one hinge: the mass matrix is its moment of inertia (kg m²)
+        mujoco.mj_mulM(model, data, inertia, np.ones(1))
+        assert abs(rates[j] ** 2 * inertia[0] - max(slopes[j], 0.0)) < 1e-6 * (1 + abs(slopes[j]))
