@@ -33,6 +33,7 @@ import numpy as np
 from lxml import etree
 from scipy.spatial.transform import Rotation
 
+from o2m.convert.actuators import _body_site
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.force_context import (
     N_POSES,
@@ -82,15 +83,22 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
     fit = BushingFit(name, coords, ends, gains, damps, *fit_deflection(ctx.builder, ends, coords))
     acting = (gains != 0.0) | (damps != 0.0)
     worst = float(fit.residual[acting].max()) if acting.any() else 0.0
-    allowed = BUSHING_LINEAR_TOLERANCE if ctx.bushing_tolerance is None else ctx.bushing_tolerance
-    if worst > max(allowed, BUSHING_LINEAR_TOLERANCE):
-        names = ", ".join(f"'{c}'" for c in coords)
-        _skip(ctx, el, f"its deflections are not linear in {names} (the best linear fit is up to {worst:.3g} rad "
-                       f"or m off over their ranges; ConvertOptions.bushing_tolerance would accept it): MuJoCo has "
-                       "no such spring")
-        return
     fit.fit_error = worst
-    if not coords:
+    if worst > BUSHING_LINEAR_TOLERANCE and _point_spring(gains, damps):
+        if damps[3] != 0.0 and ctx.bushing_tolerance is None:
+            _skip(ctx, el, f"its translational damping ({damps[3]:g} N s/m) also resists motion across the line "
+                           "between its frame origins, which a tendon's damping cannot (with any "
+                           "ConvertOptions.bushing_tolerance it converts, that part left out)")
+            return
+        _spatial_tendon(ctx, fit)
+    elif worst > max(BUSHING_LINEAR_TOLERANCE, ctx.bushing_tolerance or 0.0):
+        names = ", ".join(f"'{c}'" for c in coords)
+        unit = "rad" if np.argmax(np.where(acting, fit.residual, -1.0)) < 3 else "m"
+        _skip(ctx, el, f"its deflections are not linear in {names} (the best linear fit is up to {worst:.3g} {unit} "
+                       "off over their ranges; ConvertOptions.bushing_tolerance would accept it): MuJoCo has no such "
+                       "spring")
+        return
+    elif not coords:
         ctx.builder.result.notes.append(
             f"BushingForce '{name}': its frames do not move relative to each other (every coordinate between them "
             "is locked, or they are on one body), so it moves no coordinate and needs no MuJoCo element")
@@ -99,6 +107,31 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
     else:
         _fixed_tendons(ctx, fit, acting)
     ctx.out.bushings.append(fit)
+
+
+def _point_spring(gains: np.ndarray, damps: np.ndarray) -> bool:
+    """Only an isotropic translational stiffness k (and damping d): -k p - d ṗ, a zero-length
+    spring between the two frame origins (d: its radial part)."""
+    return (not np.any(gains[:3]) and not np.any(damps[:3]) and gains[3] > 0.0 and np.all(gains[3:] == gains[3])
+            and np.all(damps[3:] == damps[3]))
+
+
+def _spatial_tendon(ctx: _Context, fit: BushingFit) -> None:
+    """A spatial tendon between sites at the two frame origins, ``stiffness`` k and ``springlength``
+    0: its force -k L ∂L/∂q is -k (∂p/∂q)ᵀ p (L = |p|), exactly; ``damping`` d gives -d L̇ along the line."""
+    sites = [_body_site(ctx, body, f"{fit.name}_frame{i}", frame.pos) for i, (body, frame) in enumerate(fit.ends, 1)]
+    tendon = ctx.spec.add_tendon(name=ctx.unique("tendon", fit.name), group=5, rgba=[0.9, 0.6, 0.1, 1.0])
+    for site in sites:
+        tendon.wrap_site(site)
+    k, d = float(fit.stiffness[3]), float(fit.damping[3])
+    tendon.stiffness = [k, 0.0, 0.0]
+    tendon.damping = [d, 0.0, 0.0]
+    tendon.springlength = [0.0, 0.0]
+    ctx.out.exact[("tendon", tendon.name)] = {"stiffness": np.array([k, 0.0, 0.0]), "damping": np.array([d, 0.0, 0.0]),
+                                              "springlength": np.zeros(2)}
+    fit.tendons.append(tendon.name)
+    fit.form = (f"a zero-length spring on spatial tendon '{tendon.name}' between its frame origins (stiffness {k:g} "
+                f"N/m" + (f", damping {d:g} N s/m along the line only)" if d else ")"))
 
 
 def _skip(ctx: _Context, el: etree._Element, why: str) -> None:
@@ -182,6 +215,7 @@ def _joint_spring(ctx: _Context, fit: BushingFit) -> None:
     k = float(np.sum(fit.stiffness * slope ** 2))
     ref = float(-np.sum(fit.stiffness * slope * fit.offsets) / k) if k != 0.0 else 0.0
     ctx.out.joint_springs.append(JointSpring(fit.name, q, k, ref, float(np.sum(fit.damping * slope ** 2))))
+    fit.form = f"the spring and damping of joint '{q}'{_linear_note(fit)}"
     set_joint_passive(ctx, ctx.spec.joint(q), q)
 
 
@@ -205,40 +239,67 @@ def _fixed_tendons(ctx: _Context, fit: BushingFit, acting: np.ndarray) -> None:
                                                   "damping": np.array([fit.damping[i], 0.0, 0.0]),
                                                   "springlength": np.array([length0, length0])}
         fit.tendons.append(tendon.name)
+    count = f"{len(fit.tendons)} fixed tendon" + ("s" if len(fit.tendons) != 1 else "")
+    fit.form = f"{count} ({', '.join(fit.tendons)}) on joints {', '.join(fit.coordinates)}{_linear_note(fit)}"
+
+
+def _linear_note(fit: BushingFit) -> str:
+    return (f": its deflection as C q + θ0 in its coordinates, the fit's worst deflection error {fit.fit_error:.3g} "
+            "rad or m")
 
 
 # -- measurement ----------------------------------------------------------------------------------
+def _five_point(f, x: np.ndarray) -> np.ndarray:
+    """(m, n): ∂f/∂x of ``f`` (n,) -> (m,) at ``x`` by five-point central differences (step :data:`_STEP`)."""
+    cols = []
+    for e in np.eye(len(x)) * _STEP:
+        cols.append((8.0 * (f(x + e) - f(x - e)) - f(x + 2 * e) + f(x - 2 * e)) / (12.0 * _STEP))
+    return np.array(cols).T
+
+
 def bushing_generalized_force(builder: MjcfBuilder, fit: BushingFit, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
     """(n,): OpenSim's generalized force -Jᵀ (K θ + D J q̇) of a bushing on its coordinates at
-    values ``q`` and speeds ``qdot`` (n,), J by five-point central differences of the skeleton's kinematics."""
+    values ``q`` and speeds ``qdot`` (n,), J = ∂θ/∂q from the skeleton's kinematics."""
     def theta(values: np.ndarray) -> np.ndarray:
         return _deflection(builder, dict(zip(fit.coordinates, map(float, values), strict=True)), fit.ends)
 
-    eye = np.eye(len(q)) * _STEP
-    jac = np.array([(8 * (theta(q + e) - theta(q - e)) - theta(q + 2 * e) + theta(q - 2 * e)) / (12 * _STEP)
-                    for e in eye]).T  # (6, n)
+    jac = _five_point(theta, q)  # (6, n)
     return -jac.T @ (fit.stiffness * theta(q) + fit.damping * (jac @ qdot))
 
 
-def _converted_force(model: mujoco.MjModel, d: mujoco.MjData, fit: BushingFit, dofs: list[int],
-                     q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-    """(n,): the converted bushing's force: its tendons' passive force in ``model`` (posed in ``d``),
-    or its joint spring's -Cᵀ K (C q + θ0) - Cᵀ D C q̇ (the joint's own spring also holds others)."""
-    if fit.tendons:
-        d.qvel[:] = 0.0
-        d.qvel[dofs] = qdot
-        mujoco.mj_fwdPosition(model, d)
-        mujoco.mj_fwdVelocity(model, d)
-        return d.qfrc_passive[dofs].copy()
-    c = fit.slopes
-    return -c.T @ (fit.stiffness * (c @ q + fit.offsets) + fit.damping * (c @ qdot))
+def _mujoco_force(model: mujoco.MjModel, d: mujoco.MjData, plan, values: dict[str, float], fit: BushingFit,
+                  qdot: np.ndarray) -> np.ndarray:
+    """(n,): the generalized force on the bushing's coordinates of ``model``'s passive forces (its
+    tendons alone), at coordinate ``values`` and speeds ``qdot``: Gᵀ qfrc_passive with G = ∂qvel/∂q̇
+    (nv, n), so that joints driven by equalities count through their coordinates."""
+    from o2m.mj.posing import pose_mujoco
+
+    def qpos_at(q: np.ndarray) -> np.ndarray:
+        pose_mujoco(model, d, {**values, **dict(zip(fit.coordinates, map(float, q), strict=True))}, plan=plan)
+        return d.qpos.copy()
+
+    q = np.array([values[c] for c in fit.coordinates])
+    base = qpos_at(q)
+    step = np.zeros(model.nv)
+
+    def displacement(x: np.ndarray) -> np.ndarray:
+        mujoco.mj_differentiatePos(model, step, 1.0, base, qpos_at(x))
+        return step.copy()
+
+    g = _five_point(displacement, q)  # (nv, n)
+    qpos_at(q)
+    d.qvel[:] = g @ qdot
+    mujoco.mj_fwdPosition(model, d)
+    mujoco.mj_fwdVelocity(model, d)
+    return g.T @ d.qfrc_passive
 
 
 def measure_bushings(out: ForceConversion, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
-    """Record each converted bushing's worst generalized-force error (N m or N) against OpenSim's
-    formula at :data:`~o2m.convert.force_context.N_POSES` random poses and speeds (up to 1 rad/s
-    or m/s), its tendons alone acting, in ``builder.result.approximations``."""
-    from o2m.mj.posing import joint_equality_plan, pose_mujoco
+    """Record each converted bushing's worst generalized-force error against OpenSim's formula
+    (N m or N) at :data:`~o2m.convert.force_context.N_POSES` random poses and speeds (up to 1 rad/s
+    or m/s) in ``builder.result.approximations``: its MuJoCo tendons alone acting, or, for a joint
+    spring (which also holds the joint's other springs), -Cᵀ K (C q + θ0) - Cᵀ D C q̇."""
+    from o2m.mj.posing import joint_equality_plan
 
     for fit in out.bushings:
         if not fit.coordinates:
@@ -250,21 +311,21 @@ def measure_bushings(out: ForceConversion, model: mujoco.MjModel, builder: MjcfB
             only.tendon_damping[tid] = model.tendon_damping[tid]
         d = mujoco.MjData(only)
         plan = joint_equality_plan(only)
-        dofs = [int(only.jnt_dofadr[only.joint(c).id]) for c in fit.coordinates]
-        speeds = np.random.default_rng(1).uniform(-1.0, 1.0, size=(N_POSES, len(dofs)))
+        speeds = np.random.default_rng(1).uniform(-1.0, 1.0, size=(N_POSES, len(fit.coordinates)))
         worst = peak = 0.0
         for values, qdot in zip(_random_values(builder, N_POSES), speeds, strict=True):
-            pose_mujoco(only, d, values, plan=plan)
             q = np.array([values[c] for c in fit.coordinates])
             expected = bushing_generalized_force(builder, fit, q, qdot)
-            worst = max(worst, float(np.max(np.abs(_converted_force(only, d, fit, dofs, q, qdot) - expected))))
+            if fit.tendons:
+                got = _mujoco_force(only, d, plan, values, fit, qdot)
+            else:
+                c = fit.slopes
+                got = -c.T @ (fit.stiffness * (c @ q + fit.offsets) + fit.damping * (c @ qdot))
+            worst = max(worst, float(np.max(np.abs(got - expected))))
             peak = max(peak, float(np.max(np.abs(expected))))
-        form = (f"{len(fit.tendons)} fixed tendons ({', '.join(fit.tendons)}) on joints {', '.join(fit.coordinates)}"
-                if fit.tendons else f"the spring and damping of joint '{fit.coordinates[0]}'")
         kinds = {builder.coord_joint[c][1].kind for c in fit.coordinates}
         units = {frozenset({"rotation"}): "N m", frozenset({"translation"}): "N"}.get(frozenset(kinds), "N m or N")
         builder.result.approximations.append(Approximation(
-            "BushingForce", fit.name, f"{form}: its deflection as C q + θ0 in its coordinates, the fit's worst "
-            f"deflection error {fit.fit_error:.3g} rad or m", worst, units,
-            f"the converted force against -Jᵀ(K θ + D θ̇) from the skeleton's kinematics at {N_POSES} poses "
-            f"(largest {peak:.3g})"))
+            "BushingForce", fit.name, fit.form, worst, units,
+            f"the converted force against -Jᵀ(K θ + D θ̇) from the skeleton's kinematics (J = ∂θ/∂q) at {N_POSES} "
+            f"poses (largest {peak:.3g})"))

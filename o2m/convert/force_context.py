@@ -162,6 +162,7 @@ class BushingFit:
     residual: np.ndarray  # (6,) each deflection's worst |C q + θ0 - θ| over the fit's samples
     fit_error: float = 0.0  # the worst residual of a stiff or damped deflection
     tendons: list[str] = field(default_factory=list)
+    form: str = ""  # what it became, for the report
 
 
 @dataclass

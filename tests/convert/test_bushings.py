@@ -27,7 +27,7 @@ osim.Logger.setLevelString("error")
 
 COORDS = ["rx", "ry", "rz", "q1", "q2"]
 RANGES = {"rx": (-1.0, 1.0), "ry": (-1.0, 1.0), "rz": (-0.6, 0.6), "q1": (-1.0, 1.0), "q2": (-1.2, 1.4)}
-BUSHINGS = ("ball", "chain", "composed")
+BUSHINGS = ("ball", "chain", "composed", "points", "points_damped", "welded")
 
 
 def _v(*a) -> osim.Vec3:
@@ -84,17 +84,30 @@ def _build(path: Path) -> Path:
             lo, hi = RANGES[coord.getName()]
             coord.setRangeMin(lo)
             coord.setRangeMax(hi)
+    d = osim.Body("d", 0.3, _v(0.0, -0.05, 0.0), inertia)
+    m.addBody(d)
+    m.addJoint(osim.WeldJoint("weld", c, _v(0.0, -0.2, 0.0), _v(0.1, 0.0, 0.0), d, _v(0.0, 0.0, 0.0),
+                              _v(0.0, 0.0, 0.0)))
     frames = {"ball": (_offset("ball_1", ball.getParentFrame(), m.getGround(), (0.3, 0.0, 0.0), (0.02, -0.01, 0.03)),
                        _offset("ball_2", ball.getChildFrame(), a, (0.0, 0.0, 0.2))),
               "chain": (_offset("chain_1", p1.getParentFrame(), a, (0.0, 0.0, 0.0)),
                         _offset("chain_2", p2.getChildFrame(), c, (0.0, 0.0, -0.2))),
               "composed": (_offset("composed_1", ball.getParentFrame(), m.getGround(), (0.0, 0.0, 0.0)),
-                           _offset("composed_2", p1.getChildFrame(), b, (0.0, 0.0, 0.0)))}
-    trans = {"ball": (40.0, 50.0, 60.0), "chain": (0.0, 0.0, 0.0), "composed": (0.0, 0.0, 0.0)}
+                           _offset("composed_2", p1.getChildFrame(), b, (0.0, 0.0, 0.0))),
+              "welded": (_offset("welded_1", p2.getChildFrame(), c, (0.1, 0.2, 0.3), (0.01, 0.02, 0.03)),
+                         osim.PhysicalOffsetFrame("welded_2", d, osim.Transform(_v(0.02, 0.0, -0.01))))}
+    d.addComponent(frames["welded"][1])
+    for name in ("points", "points_damped"):
+        frames[name] = (_offset(f"{name}_1", p1.getParentFrame(), a, (0.2, -0.1, 0.4), (0.03, 0.02, -0.01)),
+                        _offset(f"{name}_2", p2.getChildFrame(), c, (0.0, 0.3, 0.0), (0.05, -0.1, 0.02)))
+    stiffness = {"ball": ((40.0, 50.0, 60.0), (30.0, 20.0, 10.0)), "points": ((500.0,) * 3, (0.0,) * 3),
+                 "points_damped": ((500.0,) * 3, (0.0,) * 3)}
+    damping = {"points": ((0.0,) * 3, (0.0,) * 3), "points_damped": ((2.0,) * 3, (0.0,) * 3)}
     for name, (f1, f2) in frames.items():
+        trans, rot = stiffness.get(name, ((0.0,) * 3, (30.0, 20.0, 10.0)))
+        trans_damp, rot_damp = damping.get(name, ((0.0,) * 3, (0.3, 0.5, 0.7)))
         # Python's argument order: translational stiffness, rotational stiffness, then the dampings
-        m.addForce(osim.BushingForce(name, f1, f2, _v(*trans[name]), _v(30.0, 20.0, 10.0), _v(0.0, 0.0, 0.0),
-                                     _v(0.3, 0.5, 0.7)))
+        m.addForce(osim.BushingForce(name, f1, f2, _v(*trans), _v(*rot), _v(*trans_damp), _v(*rot_damp)))
     m.finalizeConnections()
     m.printToXML(str(path))
     return path
@@ -134,7 +147,7 @@ def _opensim_forces(path: Path, bushing: str, states) -> list[np.ndarray]:
 
 def _mujoco_forces(xml: Path, tendons: list[str], states) -> list[np.ndarray]:
     """MuJoCo's passive force on the coordinates' joints with only ``tendons``' springs and dampers
-    on, at each (q, qdot); asserts every other dof gets none."""
+    on, at each (q, qdot); asserts every other dof gets none (to round-off)."""
     m = mujoco.MjModel.from_xml_path(str(xml))
     keep = [m.tendon(t).id for t in tendons]
     for arr in (m.tendon_stiffness, m.tendon_damping, m.jnt_stiffness, m.dof_damping):
@@ -150,8 +163,8 @@ def _mujoco_forces(xml: Path, tendons: list[str], states) -> list[np.ndarray]:
         d.qvel[:] = 0.0
         d.qvel[dofs] = qdot
         mujoco.mj_forward(m, d)
-        others = np.delete(d.qfrc_passive, dofs)
-        assert np.all(others == 0.0)
+        others = np.delete(d.qfrc_passive, dofs)  # a spatial tendon's, above its bodies: round-off
+        assert np.abs(others).max(initial=0.0) <= 1e-12 * max(1.0, np.abs(d.qfrc_passive).max())
         out.append(d.qfrc_passive[dofs].copy())
     return out
 
@@ -169,33 +182,40 @@ def model_path(tmp_path_factory) -> Path:
 
 def test_linear_bushings_become_exact_fixed_tendons(model_path, tmp_path):
     """'ball' (3 coordinates of one joint) and 'chain' (two joints) become fixed tendons, one per
-    stiff or damped deflection their coordinates move (ball's constant offsets none); each
-    bushing's MuJoCo passive force equals OpenSim's generalized force to 1e-9 of its size at seeded
-    poses and speeds. 'composed' is skipped with its measured non-linearity."""
+    stiff or damped deflection their coordinates move (ball's constant offsets none); 'points' (an
+    isotropic translational spring) a zero-length spatial tendon; 'welded' nothing. Each one's MuJoCo
+    passive force equals OpenSim's generalized force to 1e-9 of its size at seeded poses and speeds.
+    'composed' is skipped with its measured non-linearity, 'points_damped' for its damping across
+    the line."""
     conv = convert(model_path, tmp_path / "out", convert_options(fit_mechanics=False))
     skipped = {s.name: s.reason for s in conv.report.skipped if s.element == "BushingForce"}
-    assert set(skipped) == {"composed"}
+    assert set(skipped) == {"composed", "points_damped"}
     worst = float(skipped["composed"].split("up to ")[1].split(" rad")[0])
     assert "not linear in 'rx', 'ry', 'rz', 'q1'" in skipped["composed"] and worst > 0.01
+    assert "damping (2 N s/m)" in skipped["points_damped"]
+    assert any("'welded': its frames do not move" in n for n in conv.report.notes)
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
-    tendons = {name: sorted(m.tendon(i).name for i in range(m.ntendon) if m.tendon(i).name.startswith(name + "_"))
-               for name in ("ball", "chain")}
-    assert tendons == {"ball": ["ball_rx", "ball_ry", "ball_rz"], "chain": ["chain_rz"]}
+    tendons = {name: sorted(m.tendon(i).name for i in range(m.ntendon)
+                            if m.tendon(i).name == name or m.tendon(i).name.startswith(name + "_"))
+               for name in ("ball", "chain", "points")}
+    assert tendons == {"ball": ["ball_rx", "ball_ry", "ball_rz"], "chain": ["chain_rz"], "points": ["points"]}
     states = _states(6, seed=3)
     for name, ts in tendons.items():
         expected = _opensim_forces(model_path, name, states)
         for got, want in zip(_mujoco_forces(conv.xml, ts, states), expected, strict=True):
             assert np.abs(want).max() > 0.1
             np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-9 * np.abs(want).max())
-    for name in ("ball", "chain"):
         [approx] = [a for a in conv.report.approximations if a.element == "BushingForce" and a.name == name]
         assert approx.max_error < 1e-6
+    welded = _opensim_forces(model_path, "welded", states)
+    assert max(np.abs(w).max() for w in welded) < 1e-9  # what OpenSim applies moves no coordinate
 
 
-def test_bushing_tolerance_converts_a_composed_bushing(model_path, tmp_path):
+def test_bushing_tolerance_converts_approximations(model_path, tmp_path):
     """With a bushing_tolerance above its measured non-linearity 'composed' becomes fixed tendons
-    (the report records its generalized-force error: OpenSim's against the tendons', at random
-    poses); below it, it stays skipped. A negative tolerance is refused."""
+    and 'points_damped' a spatial tendon (its damping along the line only); the report records
+    their generalized-force errors. Below it, 'composed' stays skipped. A negative tolerance is
+    refused."""
     default = convert(model_path, tmp_path / "default", convert_options(fit_mechanics=False))
     [reason] = [s.reason for s in default.report.skipped if s.name == "composed"]
     worst = float(reason.split("up to ")[1].split(" rad")[0])
@@ -205,9 +225,11 @@ def test_bushing_tolerance_converts_a_composed_bushing(model_path, tmp_path):
     above = convert(model_path, tmp_path / "above", convert_options(fit_mechanics=False,
                                                                     bushing_tolerance=worst * 2))
     assert not [s for s in above.report.skipped if s.element == "BushingForce"]
-    [approx] = [a for a in above.report.approximations if a.name == "composed"]
-    assert approx.max_error > 0.0 and f"{worst:.3g}" in approx.what
+    approx = {a.name: a for a in above.report.approximations if a.element == "BushingForce"}
+    assert approx["composed"].max_error > 0.0 and f"{worst:.3g}" in approx["composed"].what
+    assert approx["points_damped"].max_error > 0.0 and "along the line only" in approx["points_damped"].what
     m = mujoco.MjModel.from_xml_path(str(above.xml))
-    assert {m.tendon(i).name for i in range(m.ntendon)} >= {"composed_rx", "composed_ry", "composed_rz"}
+    assert {m.tendon(i).name for i in range(m.ntendon)} >= {"composed_rx", "composed_ry", "composed_rz",
+                                                             "points_damped"}
     with pytest.raises(ValueError, match="bushing_tolerance"):
         ConvertOptions(bushing_tolerance=-1.0)
