@@ -95,8 +95,8 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
         names = ", ".join(f"'{c}'" for c in coords)
         unit = "rad" if np.argmax(np.where(acting, fit.residual, -1.0)) < 3 else "m"
         _skip(ctx, el, f"its deflections are not linear in {names} (the best linear fit is up to {worst:.3g} {unit} "
-                       "off over their ranges; ConvertOptions.bushing_tolerance would accept it): MuJoCo has no such "
-                       "spring")
+                       "off over their ranges; a ConvertOptions.bushing_tolerance that large converts it "
+                       "approximately): MuJoCo has no such spring")
         return
     elif not coords:
         ctx.builder.result.notes.append(
