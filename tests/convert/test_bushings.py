@@ -2,11 +2,13 @@
 
 A small model: ground -CustomJoint 'ball' (rotations about X, -Y through a mirrored function, Z
 through q -> 2 q + 0.1: a complement joint in MuJoCo)-> a -Pin p1-> b -Pin p2 (axis parallel to
-p1's)-> c. Bushing 'ball' spans the 3-coordinate joint with frames on its axes (deflections linear
-in rx, ry, rz), bushing 'chain' spans p1 and p2 (its Z angle is p1 + p2), bushing 'composed' spans
-'ball' and p1 (rotations about different axes composed: not linear). The linear ones become fixed
-tendons whose passive force equals OpenSim's generalized force (M · Δu̇ with the bushing on and
-off) to 1e-9 of its size; the composed one is skipped with its measured non-linearity unless
+p1's)-> c, c -Weld-> d, c -Pin p3 (locked)-> e. Bushing 'ball' spans the 3-coordinate joint with
+frames on its axes (deflections linear in rx, ry, rz), 'chain' spans p1 and p2 (its Z angle is
+q1 + q2), 'locked' spans p2 and the locked p3 (one free coordinate: a joint spring), 'points' is
+an isotropic translational spring between a and c, 'welded' joins c and d, 'composed' spans
+'ball' and p1 (rotations about different axes composed: not linear). The exact ones' MuJoCo
+passive force equals OpenSim's generalized force (M · Δu̇ with the bushing on and off) to 1e-9 of
+its size; the composed one is skipped with its measured non-linearity unless
 ``bushing_tolerance`` accepts it.
 """
 
@@ -27,7 +29,7 @@ osim.Logger.setLevelString("error")
 
 COORDS = ["rx", "ry", "rz", "q1", "q2"]
 RANGES = {"rx": (-1.0, 1.0), "ry": (-1.0, 1.0), "rz": (-0.6, 0.6), "q1": (-1.0, 1.0), "q2": (-1.2, 1.4)}
-BUSHINGS = ("ball", "chain", "composed", "points", "points_damped", "welded")
+BUSHINGS = ("ball", "chain", "composed", "points", "points_damped", "welded", "locked")
 
 
 def _v(*a) -> osim.Vec3:
@@ -85,9 +87,15 @@ def _build(path: Path) -> Path:
             coord.setRangeMin(lo)
             coord.setRangeMax(hi)
     d = osim.Body("d", 0.3, _v(0.0, -0.05, 0.0), inertia)
+    e = osim.Body("e", 0.5, _v(0.01, -0.04, 0.0), inertia)
     m.addBody(d)
+    m.addBody(e)
     m.addJoint(osim.WeldJoint("weld", c, _v(0.0, -0.2, 0.0), _v(0.1, 0.0, 0.0), d, _v(0.0, 0.0, 0.0),
                               _v(0.0, 0.0, 0.0)))
+    p3 = osim.PinJoint("p3", c, _v(0.0, -0.2, 0.0), _v(0.4, 0.1, -0.3), e, _v(0.0, 0.0, 0.0), _v(0.4, 0.1, -0.3))
+    m.addJoint(p3)
+    p3.upd_coordinates(0).setName("q3")  # locked at 0: e's frame is c's, shifted
+    p3.upd_coordinates(0).setDefaultLocked(True)
     frames = {"ball": (_offset("ball_1", ball.getParentFrame(), m.getGround(), (0.3, 0.0, 0.0), (0.02, -0.01, 0.03)),
                        _offset("ball_2", ball.getChildFrame(), a, (0.0, 0.0, 0.2))),
               "chain": (_offset("chain_1", p1.getParentFrame(), a, (0.0, 0.0, 0.0)),
@@ -97,6 +105,9 @@ def _build(path: Path) -> Path:
               "welded": (_offset("welded_1", p2.getChildFrame(), c, (0.1, 0.2, 0.3), (0.01, 0.02, 0.03)),
                          osim.PhysicalOffsetFrame("welded_2", d, osim.Transform(_v(0.02, 0.0, -0.01))))}
     d.addComponent(frames["welded"][1])
+    frames["locked"] = (_offset("locked_1", p2.getParentFrame(), b, (0.0, 0.0, 0.1)),
+                        osim.PhysicalOffsetFrame("locked_2", e, p2.getChildFrame().findTransformInBaseFrame()))
+    e.addComponent(frames["locked"][1])
     for name in ("points", "points_damped"):
         frames[name] = (_offset(f"{name}_1", p1.getParentFrame(), a, (0.2, -0.1, 0.4), (0.03, 0.02, -0.01)),
                         _offset(f"{name}_2", p2.getChildFrame(), c, (0.0, 0.3, 0.0), (0.05, -0.1, 0.02)))
@@ -145,15 +156,16 @@ def _opensim_forces(path: Path, bushing: str, states) -> list[np.ndarray]:
     return out
 
 
-def _mujoco_forces(xml: Path, tendons: list[str], states) -> list[np.ndarray]:
-    """MuJoCo's passive force on the coordinates' joints with only ``tendons``' springs and dampers
-    on, at each (q, qdot); asserts every other dof gets none (to round-off)."""
+def _mujoco_forces(xml: Path, tendons: list[str], states, joints: tuple[str, ...] = ()) -> list[np.ndarray]:
+    """MuJoCo's passive force on the coordinates' joints with only the springs and dampers of
+    ``tendons`` and ``joints`` on, at each (q, qdot); asserts every other dof gets none (to round-off)."""
     m = mujoco.MjModel.from_xml_path(str(xml))
-    keep = [m.tendon(t).id for t in tendons]
-    for arr in (m.tendon_stiffness, m.tendon_damping, m.jnt_stiffness, m.dof_damping):
+    keep_joints = [m.joint(j).id for j in joints]
+    for arr, keep in ((m.tendon_stiffness, [m.tendon(t).id for t in tendons]),
+                      (m.tendon_damping, [m.tendon(t).id for t in tendons]), (m.jnt_stiffness, keep_joints),
+                      (m.dof_damping, [int(m.jnt_dofadr[j]) for j in keep_joints])):
         mask = np.ones(arr.shape[0], bool)
-        if arr.shape[0] == m.ntendon:
-            mask[keep] = False
+        mask[keep] = False
         arr[mask] = 0.0
     d = mujoco.MjData(m)
     dofs = [int(m.jnt_dofadr[m.joint(c).id]) for c in COORDS]
@@ -183,7 +195,8 @@ def model_path(tmp_path_factory) -> Path:
 def test_linear_bushings_become_exact_fixed_tendons(model_path, tmp_path):
     """'ball' (3 coordinates of one joint) and 'chain' (two joints) become fixed tendons, one per
     stiff or damped deflection their coordinates move (ball's constant offsets none); 'points' (an
-    isotropic translational spring) a zero-length spatial tendon; 'welded' nothing. Each one's MuJoCo
+    isotropic translational spring) a zero-length spatial tendon; 'locked' the spring and damping
+    of q2, the one free coordinate between its frames; 'welded' nothing. Each one's MuJoCo
     passive force equals OpenSim's generalized force to 1e-9 of its size at seeded poses and speeds.
     'composed' is skipped with its measured non-linearity, 'points_damped' for its damping across
     the line."""
@@ -207,6 +220,15 @@ def test_linear_bushings_become_exact_fixed_tendons(model_path, tmp_path):
             np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-9 * np.abs(want).max())
         [approx] = [a for a in conv.report.approximations if a.element == "BushingForce" and a.name == name]
         assert approx.max_error < 1e-6
+    [locked] = [a for a in conv.report.approximations if a.element == "BushingForce" and a.name == "locked"]
+    assert "joint 'q2'" in locked.what and locked.max_error < 1e-6
+    q2 = m.joint("q2").id
+    assert (m.jnt_stiffness[q2], m.qpos_spring[m.jnt_qposadr[q2]], m.dof_damping[m.jnt_dofadr[q2]]) == \
+        pytest.approx((10.0, 0.1, 0.7), rel=1e-12)  # K_z, the frames' 0.1 rad turn, D_z
+    expected = _opensim_forces(model_path, "locked", states)
+    for got, want in zip(_mujoco_forces(conv.xml, [], states, joints=("q2",)), expected, strict=True):
+        assert np.abs(want).max() > 0.1
+        np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-9 * np.abs(want).max())
     welded = _opensim_forces(model_path, "welded", states)
     assert max(np.abs(w).max() for w in welded) < 1e-9  # what OpenSim applies moves no coordinate
 
