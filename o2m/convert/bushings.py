@@ -1,4 +1,4 @@
-"""BushingForce as joint springs or fixed tendons, where its deflections are linear in coordinates.
+"""BushingForce as joint springs, fixed tendons or a spatial tendon, where MuJoCo can give its force.
 
 OpenSim's BushingForce deflects frame 2 against frame 1 by X-Y-Z body-fixed angles and a
 translation in frame 1, θ (6,), and applies ``-K θ - D θ̇`` (diagonal K, D: N m/rad, N/m; N m s/rad,
@@ -17,11 +17,16 @@ is exactly ``-Cᵀ K (C q + θ0) - Cᵀ D C q̇``, which MuJoCo gives as:
 - none (every coordinate between the frames locked, or both frames on one body): nothing, since
   a force between two rigidly joined frames moves no coordinate.
 
-Deflections not linear (rotations composed across joints about different axes) are skipped, the
-reason giving the best linear fit's worst deflection error over the coordinates' ranges; with a
-``bushing_tolerance`` (rad or m, :class:`o2m.convert.converter.ConvertOptions`) a fit within it
-converts as above and the report records its measured generalized-force error. Angles in
-radians, lengths in metres.
+A bushing with only an isotropic translational stiffness k is, whatever its deflections, a
+zero-length spring between its frame origins: ½ k |p|² with |p| their distance, which a spatial
+tendon between sites there gives exactly (``stiffness`` k, ``springlength`` 0). Its isotropic
+damping d resists all relative motion of the origins, a tendon's only along the line, so a damped
+one needs a tolerance. Deflections not linear otherwise (rotations composed across joints about
+different axes) are skipped, the reason giving the best linear fit's worst deflection error over
+the coordinates' ranges; with a ``bushing_tolerance`` (rad or m,
+:class:`o2m.convert.converter.ConvertOptions`) a fit within it converts as above. The report
+records every converted bushing's measured generalized-force error (:func:`measure_bushings`).
+Angles in radians, lengths in metres.
 """
 
 from __future__ import annotations
@@ -49,7 +54,8 @@ from o2m.convert.limit_forces import set_joint_passive
 from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Joint, Skipped
 
-__all__ = ["BUSHING_LINEAR_TOLERANCE", "convert_bushing", "fit_deflection", "measure_bushings"]
+__all__ = ["BUSHING_LINEAR_TOLERANCE", "bushing_generalized_force", "convert_bushing", "fit_deflection",
+           "measure_bushings"]
 
 #: A deflection counts as linear in its coordinates when a linear function fits it within this
 #: (rad or m) at every sample of their ranges.
@@ -69,7 +75,8 @@ _STEP = 1e-4
 
 
 def convert_bushing(ctx: _Context, el: etree._Element) -> None:
-    """BushingForce -> joint springs or fixed tendons, or a skip with the reason (see the module)."""
+    """BushingForce -> a joint spring, fixed tendons, a spatial tendon or nothing; or a skip with the
+    reason (see the module)."""
     name = el.get("name")
     if el.find("socket_frame1") is None or el.find("socket_frame2") is None:
         _skip(ctx, el, "an OpenSim 3.x bushing (no socket_frame1/2) is not converted")
