@@ -17,15 +17,16 @@ is exactly ``-Cᵀ K (C q + θ0) - Cᵀ D C q̇``, which MuJoCo gives as:
 - none (every coordinate between the frames locked, or both frames on one body): nothing, since
   a force between two rigidly joined frames moves no coordinate.
 
-A bushing with only an isotropic translational stiffness k is, whatever its deflections, a
-zero-length spring between its frame origins: ½ k |p|² with |p| their distance, which a spatial
-tendon between sites there gives exactly (``stiffness`` k, ``springlength`` 0). Its isotropic
-damping d resists all relative motion of the origins, a tendon's only along the line, so a damped
-one needs a tolerance. Deflections not linear otherwise (rotations composed across joints about
-different axes) are skipped, the reason giving the best linear fit's worst deflection error over
-the coordinates' ranges; with a ``bushing_tolerance`` (rad or m,
-:class:`o2m.convert.converter.ConvertOptions`) a fit within it converts as above. The report
-records every converted bushing's measured generalized-force error (:func:`measure_bushings`).
+The angles and the offsets are separate terms of the force, each converted on its own. An
+isotropic translational stiffness k is, whatever the offsets do, a zero-length spring between the
+frame origins: ½ k |p|², |p| their distance, which a spatial tendon between sites there gives
+exactly (``stiffness`` k, ``springlength`` 0). Its isotropic damping d resists all relative motion
+of the origins, a tendon's only motion along the line, so a damped one needs a tolerance.
+Deflections not linear otherwise (rotations composed across joints about different axes) are
+skipped, the reason giving the best linear fit's worst deflection error over the coordinates'
+ranges; with a ``bushing_tolerance`` (rad or m, :class:`o2m.convert.converter.ConvertOptions`) a
+fit within it converts as above. The report records every converted bushing's measured
+generalized-force error (:func:`measure_bushings`).
 Angles in radians, lengths in metres.
 """
 
@@ -88,42 +89,67 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
                             _vector(el, "translational_damping", (0.0, 0.0, 0.0), ctx)])
     coords = _bushing_coordinates(ctx.builder, ends[0][0], ends[1][0])
     fit = BushingFit(name, coords, ends, gains, damps, *fit_deflection(ctx.builder, ends, coords))
-    acting = (gains != 0.0) | (damps != 0.0)
-    worst = float(fit.residual[acting].max()) if acting.any() else 0.0
-    fit.fit_error = worst
-    if worst > BUSHING_LINEAR_TOLERANCE and _point_spring(gains, damps):
-        if damps[3] != 0.0 and ctx.bushing_tolerance is None:
-            _skip(ctx, el, f"its translational damping ({damps[3]:g} N s/m) also resists motion across the line "
-                           "between its frame origins, which a tendon's damping cannot (with any "
-                           "ConvertOptions.bushing_tolerance it converts, that part left out)")
-            return
-        _spatial_tendon(ctx, fit)
-    elif worst > max(BUSHING_LINEAR_TOLERANCE, ctx.bushing_tolerance or 0.0):
-        names = ", ".join(f"'{c}'" for c in coords)
-        unit = "rad" if np.argmax(np.where(acting, fit.residual, -1.0)) < 3 else "m"
-        _skip(ctx, el, f"its deflections are not linear in {names} (the best linear fit is up to {worst:.3g} {unit} "
-                       "off over their ranges; a ConvertOptions.bushing_tolerance that large converts it "
-                       "approximately): MuJoCo has no such spring")
+    plan = _plan(fit, ctx.bushing_tolerance)
+    if isinstance(plan, str):
+        _skip(ctx, el, plan)
         return
-    elif not coords:
+    fit.linear, spatial = plan
+    fit.fit_error = float(fit.residual[fit.linear].max(initial=0.0))
+    forms = []
+    if not coords:
         ctx.builder.result.notes.append(
             f"BushingForce '{name}': its frames do not move relative to each other (every coordinate between them "
             "is locked, or they are on one body), so it moves no coordinate and needs no MuJoCo element")
-    elif len(coords) == 1:
-        _joint_spring(ctx, fit)
-    else:
-        _fixed_tendons(ctx, fit, acting)
+    elif len(coords) == 1 and fit.linear.any():
+        forms.append(_joint_spring(ctx, fit))
+    elif fit.linear.any():
+        forms.append(_fixed_tendons(ctx, fit))
+    if spatial:
+        forms.append(_spatial_tendon(ctx, fit))
+    fit.form = "; ".join(forms)
     ctx.out.bushings.append(fit)
 
 
-def _point_spring(gains: np.ndarray, damps: np.ndarray) -> bool:
-    """Only an isotropic translational stiffness k (and damping d): -k p - d ṗ, a zero-length
+def _plan(fit: BushingFit, tolerance: float | None) -> tuple[np.ndarray, bool] | str:
+    """Which stiff or damped deflections become C q + θ0 (6,) and whether the translations become a
+    zero-length spatial tendon; or why the bushing is skipped. The angles and the offsets are
+    separate terms of the force, each block taken the first way that fits: linear within
+    :data:`BUSHING_LINEAR_TOLERANCE`, an isotropic translational spring, linear within ``tolerance``."""
+    acting = (fit.stiffness != 0.0) | (fit.damping != 0.0)
+    linear, spatial, failures = np.zeros(6, bool), False, []
+    for block, unit in ((slice(0, 3), "rad"), (slice(3, 6), "m")):
+        act = np.zeros(6, bool)
+        act[block] = acting[block]
+        worst = float(fit.residual[act].max(initial=0.0))
+        point = unit == "m" and _point_spring(fit.stiffness[block], fit.damping[block])
+        if not act.any() or worst <= BUSHING_LINEAR_TOLERANCE:
+            linear |= act
+        elif point and (fit.damping[3] == 0.0 or tolerance is not None):
+            spatial = True
+        elif point:
+            return (f"its translational damping ({fit.damping[3]:g} N s/m) also resists motion across the line "
+                    "between its frame origins, which a tendon's damping cannot (with any "
+                    "ConvertOptions.bushing_tolerance it converts, that part left out)")
+        elif tolerance is not None and worst <= tolerance:
+            linear |= act
+        else:
+            failures.append((worst, unit))
+    if failures:
+        worst, unit = max(failures)
+        names = ", ".join(f"'{c}'" for c in fit.coordinates)
+        return (f"its deflections are not linear in {names} (the best linear fit is up to {worst:.3g} {unit} off "
+                "over their ranges; a ConvertOptions.bushing_tolerance that large converts it approximately): MuJoCo "
+                "has no such spring")
+    return linear, spatial
+
+
+def _point_spring(stiffness: np.ndarray, damping: np.ndarray) -> bool:
+    """An isotropic translational stiffness k > 0 and damping d (3,): -k p - d ṗ, a zero-length
     spring between the two frame origins (d: its radial part)."""
-    return (not np.any(gains[:3]) and not np.any(damps[:3]) and gains[3] > 0.0 and np.all(gains[3:] == gains[3])
-            and np.all(damps[3:] == damps[3]))
+    return bool(stiffness[0] > 0.0 and np.all(stiffness == stiffness[0]) and np.all(damping == damping[0]))
 
 
-def _spatial_tendon(ctx: _Context, fit: BushingFit) -> None:
+def _spatial_tendon(ctx: _Context, fit: BushingFit) -> str:
     """A spatial tendon between sites at the two frame origins, ``stiffness`` k and ``springlength``
     0: its force -k L ∂L/∂q is -k (∂p/∂q)ᵀ p (L = |p|), exactly; ``damping`` d gives -d L̇ along the line."""
     sites = [_body_site(ctx, body, f"{fit.name}_frame{i}", frame.pos) for i, (body, frame) in enumerate(fit.ends, 1)]
@@ -137,8 +163,8 @@ def _spatial_tendon(ctx: _Context, fit: BushingFit) -> None:
     ctx.out.exact[("tendon", tendon.name)] = {"stiffness": np.array([k, 0.0, 0.0]), "damping": np.array([d, 0.0, 0.0]),
                                               "springlength": np.zeros(2)}
     fit.tendons.append(tendon.name)
-    fit.form = (f"a zero-length spring on spatial tendon '{tendon.name}' between its frame origins (stiffness {k:g} "
-                f"N/m" + (f", damping {d:g} N s/m along the line only)" if d else ")"))
+    return (f"a zero-length spring on spatial tendon '{tendon.name}' between its frame origins (stiffness {k:g} N/m"
+            + (f", damping {d:g} N s/m along the line only)" if d else ")"))
 
 
 def _skip(ctx: _Context, el: etree._Element, why: str) -> None:
@@ -216,19 +242,22 @@ def _deflection(builder: MjcfBuilder, changes: dict[str, float], ends) -> np.nda
     return np.concatenate([angles, f1.rot.T @ (f2.pos - f1.pos)])
 
 
-def _joint_spring(ctx: _Context, fit: BushingFit) -> None:
-    """One coordinate: Σ K_i (c_i q + θ0_i) c_i = k (q - ref), its joint's spring and damping."""
+def _joint_spring(ctx: _Context, fit: BushingFit) -> str:
+    """One coordinate: Σ K_i (c_i q + θ0_i) c_i = k (q - ref) over the linear deflections i, its
+    joint's spring and damping."""
     q, slope = fit.coordinates[0], fit.slopes[:, 0]
-    k = float(np.sum(fit.stiffness * slope ** 2))
-    ref = float(-np.sum(fit.stiffness * slope * fit.offsets) / k) if k != 0.0 else 0.0
-    ctx.out.joint_springs.append(JointSpring(fit.name, q, k, ref, float(np.sum(fit.damping * slope ** 2))))
-    fit.form = f"the spring and damping of joint '{q}'{_linear_note(fit)}"
+    gains, damps = np.where(fit.linear, fit.stiffness, 0.0), np.where(fit.linear, fit.damping, 0.0)
+    k = float(np.sum(gains * slope ** 2))
+    ref = float(-np.sum(gains * slope * fit.offsets) / k) if k != 0.0 else 0.0
+    ctx.out.joint_springs.append(JointSpring(fit.name, q, k, ref, float(np.sum(damps * slope ** 2))))
     set_joint_passive(ctx, ctx.spec.joint(q), q)
+    fit.joint_spring = True
+    return f"the spring and damping of joint '{q}'{_linear_note(fit)}"
 
 
-def _fixed_tendons(ctx: _Context, fit: BushingFit, acting: np.ndarray) -> None:
-    """Several coordinates: one fixed tendon per stiff or damped deflection that they move."""
-    for i in np.flatnonzero(acting):
+def _fixed_tendons(ctx: _Context, fit: BushingFit) -> str:
+    """Several coordinates: one fixed tendon per linear deflection that they move."""
+    for i in np.flatnonzero(fit.linear):
         coefs, length0 = fit.slopes[i], -float(fit.offsets[i])
         if not np.any(coefs):
             continue  # a constant deflection: a force that moves no coordinate
@@ -247,7 +276,7 @@ def _fixed_tendons(ctx: _Context, fit: BushingFit, acting: np.ndarray) -> None:
                                                   "springlength": np.array([length0, length0])}
         fit.tendons.append(tendon.name)
     count = f"{len(fit.tendons)} fixed tendon" + ("s" if len(fit.tendons) != 1 else "")
-    fit.form = f"{count} ({', '.join(fit.tendons)}) on joints {', '.join(fit.coordinates)}{_linear_note(fit)}"
+    return f"{count} ({', '.join(fit.tendons)}) on joints {', '.join(fit.coordinates)}{_linear_note(fit)}"
 
 
 def _linear_note(fit: BushingFit) -> str:
@@ -304,8 +333,8 @@ def _mujoco_force(model: mujoco.MjModel, d: mujoco.MjData, plan, values: dict[st
 def measure_bushings(out: ForceConversion, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
     """Record each converted bushing's worst generalized-force error against OpenSim's formula
     (N m or N) at :data:`~o2m.convert.force_context.N_POSES` random poses and speeds (up to 1 rad/s
-    or m/s) in ``builder.result.approximations``: its MuJoCo tendons alone acting, or, for a joint
-    spring (which also holds the joint's other springs), -Cᵀ K (C q + θ0) - Cᵀ D C q̇."""
+    or m/s) in ``builder.result.approximations``: its MuJoCo tendons alone acting, and for a joint
+    spring (which also holds the joint's other springs) -Cᵀ K (C q + θ0) - Cᵀ D C q̇."""
     from o2m.mj.posing import joint_equality_plan
 
     for fit in out.bushings:
@@ -323,11 +352,10 @@ def measure_bushings(out: ForceConversion, model: mujoco.MjModel, builder: MjcfB
         for values, qdot in zip(_random_values(builder, N_POSES), speeds, strict=True):
             q = np.array([values[c] for c in fit.coordinates])
             expected = bushing_generalized_force(builder, fit, q, qdot)
-            if fit.tendons:
-                got = _mujoco_force(only, d, plan, values, fit, qdot)
-            else:
-                c = fit.slopes
-                got = -c.T @ (fit.stiffness * (c @ q + fit.offsets) + fit.damping * (c @ qdot))
+            got = _mujoco_force(only, d, plan, values, fit, qdot) if fit.tendons else np.zeros(len(q))
+            if fit.joint_spring:
+                c, gains, damps = fit.slopes, fit.stiffness * fit.linear, fit.damping * fit.linear
+                got = got - c.T @ (gains * (c @ q + fit.offsets) + damps * (c @ qdot))
             worst = max(worst, float(np.max(np.abs(got - expected))))
             peak = max(peak, float(np.max(np.abs(expected))))
         kinds = {builder.coord_joint[c][1].kind for c in fit.coordinates}

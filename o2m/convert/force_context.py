@@ -160,7 +160,9 @@ class BushingFit:
     slopes: np.ndarray  # (6, n) C
     offsets: np.ndarray  # (6,) θ0
     residual: np.ndarray  # (6,) each deflection's worst |C q + θ0 - θ| over the fit's samples
-    fit_error: float = 0.0  # the worst residual of a stiff or damped deflection
+    linear: np.ndarray = field(default_factory=lambda: np.zeros(6, bool))  # (6,) the deflections taken as C q + θ0
+    fit_error: float = 0.0  # their worst residual (rad or m)
+    joint_spring: bool = False  # they are its one coordinate's joint spring (else fixed tendons)
     tendons: list[str] = field(default_factory=list)
     form: str = ""  # what it became, for the report
 

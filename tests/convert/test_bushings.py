@@ -4,7 +4,8 @@ A small model: ground -CustomJoint 'ball' (rotations about X, -Y through a mirro
 through q -> 2 q + 0.1: a complement joint in MuJoCo)-> a -Pin p1-> b -Pin p2 (axis parallel to
 p1's)-> c, c -Weld-> d, c -Pin p3 (locked)-> e. Bushing 'ball' spans the 3-coordinate joint with
 frames on its axes (deflections linear in rx, ry, rz), 'chain' spans p1 and p2 (its Z angle is
-q1 + q2), 'locked' spans p2 and the locked p3 (one free coordinate: a joint spring), 'points' is
+q1 + q2; its isotropic translational spring between points off the axes is not linear),
+'locked' spans p2 and the locked p3 (one free coordinate: a joint spring), 'points' is
 an isotropic translational spring between a and c, 'welded' joins c and d, 'composed' spans
 'ball' and p1 (rotations about different axes composed: not linear). The exact ones' MuJoCo
 passive force equals OpenSim's generalized force (M · Δu̇ with the bushing on and off) to 1e-9 of
@@ -99,7 +100,7 @@ def _build(path: Path) -> Path:
     frames = {"ball": (_offset("ball_1", ball.getParentFrame(), m.getGround(), (0.3, 0.0, 0.0), (0.02, -0.01, 0.03)),
                        _offset("ball_2", ball.getChildFrame(), a, (0.0, 0.0, 0.2))),
               "chain": (_offset("chain_1", p1.getParentFrame(), a, (0.0, 0.0, 0.0)),
-                        _offset("chain_2", p2.getChildFrame(), c, (0.0, 0.0, -0.2))),
+                        _offset("chain_2", p2.getChildFrame(), c, (0.0, 0.0, -0.2), (0.05, -0.1, 0.02))),
               "composed": (_offset("composed_1", ball.getParentFrame(), m.getGround(), (0.0, 0.0, 0.0)),
                            _offset("composed_2", p1.getChildFrame(), b, (0.0, 0.0, 0.0))),
               "welded": (_offset("welded_1", p2.getChildFrame(), c, (0.1, 0.2, 0.3), (0.01, 0.02, 0.03)),
@@ -111,7 +112,8 @@ def _build(path: Path) -> Path:
     for name in ("points", "points_damped"):
         frames[name] = (_offset(f"{name}_1", p1.getParentFrame(), a, (0.2, -0.1, 0.4), (0.03, 0.02, -0.01)),
                         _offset(f"{name}_2", p2.getChildFrame(), c, (0.0, 0.3, 0.0), (0.05, -0.1, 0.02)))
-    stiffness = {"ball": ((40.0, 50.0, 60.0), (30.0, 20.0, 10.0)), "points": ((500.0,) * 3, (0.0,) * 3),
+    stiffness = {"ball": ((40.0, 50.0, 60.0), (30.0, 20.0, 10.0)), "chain": ((200.0,) * 3, (30.0, 20.0, 10.0)),
+                 "points": ((500.0,) * 3, (0.0,) * 3),
                  "points_damped": ((500.0,) * 3, (0.0,) * 3)}
     damping = {"points": ((0.0,) * 3, (0.0,) * 3), "points_damped": ((2.0,) * 3, (0.0,) * 3)}
     for name, (f1, f2) in frames.items():
@@ -194,7 +196,8 @@ def model_path(tmp_path_factory) -> Path:
 
 def test_linear_bushings_become_exact_fixed_tendons(model_path, tmp_path):
     """'ball' (3 coordinates of one joint) and 'chain' (two joints) become fixed tendons, one per
-    stiff or damped deflection their coordinates move (ball's constant offsets none); 'points' (an
+    stiff or damped angle or offset their coordinates move (ball's constant offsets none), and
+    chain's translational spring a zero-length spatial tendon; so does 'points' (an
     isotropic translational spring) a zero-length spatial tendon; 'locked' the spring and damping
     of q2, the one free coordinate between its frames; 'welded' nothing. Each one's MuJoCo
     passive force equals OpenSim's generalized force to 1e-9 of its size at seeded poses and speeds.
@@ -211,7 +214,7 @@ def test_linear_bushings_become_exact_fixed_tendons(model_path, tmp_path):
     tendons = {name: sorted(m.tendon(i).name for i in range(m.ntendon)
                             if m.tendon(i).name == name or m.tendon(i).name.startswith(name + "_"))
                for name in ("ball", "chain", "points")}
-    assert tendons == {"ball": ["ball_rx", "ball_ry", "ball_rz"], "chain": ["chain_rz"], "points": ["points"]}
+    assert tendons == {"ball": ["ball_rx", "ball_ry", "ball_rz"], "chain": ["chain", "chain_rz"], "points": ["points"]}
     states = _states(6, seed=3)
     for name, ts in tendons.items():
         expected = _opensim_forces(model_path, name, states)
