@@ -227,7 +227,7 @@ class ForceConversion:
     ligaments: list[Ligament] = field(default_factory=list)
     springs: list[Spring] = field(default_factory=list)
     joint_springs: list[JointSpring] = field(default_factory=list)
-    bushings: list[BushingFit] = field(default_factory=list)  # one-coordinate ones are joint_springs too
+    bushings: list[BushingFit] = field(default_factory=list)  # those with a joint spring are joint_springs too
     drifts: list[PoseDrift] = field(default_factory=list)
     actuators: list[str] = field(default_factory=list)
     contact: ContactConversion = field(default_factory=ContactConversion)
@@ -237,7 +237,7 @@ class ForceConversion:
     @property
     def converted(self) -> int:
         return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.joint_springs)
-                + sum(len(b.coordinates) != 1 for b in self.bushings) + len(self.actuators)
+                + sum(not b.joint_spring for b in self.bushings) + len(self.actuators)
                 + len(self.contact.forces))
 
 

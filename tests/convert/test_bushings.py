@@ -210,6 +210,7 @@ def test_linear_bushings_become_exact_fixed_tendons(model_path, tmp_path):
     assert "not linear in 'rx', 'ry', 'rz', 'q1'" in skipped["composed"] and worst > 0.01
     assert "damping (2 N s/m)" in skipped["points_damped"]
     assert any("'welded': its frames do not move" in n for n in conv.report.notes)
+    assert conv.report.counts["other forces"] == len(BUSHINGS) - len(skipped)  # each converted one once
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
     tendons = {name: sorted(m.tendon(i).name for i in range(m.ntendon)
                             if m.tendon(i).name == name or m.tendon(i).name.startswith(name + "_"))
