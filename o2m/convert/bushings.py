@@ -37,6 +37,7 @@ import itertools
 import mujoco
 import numpy as np
 from lxml import etree
+from scipy.optimize import linprog
 from scipy.spatial.transform import Rotation
 
 from o2m.convert.actuators import _body_site
@@ -213,24 +214,42 @@ def _samples(ranges: np.ndarray, seed: int = 0) -> np.ndarray:
 
 
 def fit_deflection(builder: MjcfBuilder, ends, coords: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The least-squares linear fit θ ≈ C q + θ0 of a bushing's deflection over its coordinates'
-    ranges: C (6, n), θ0 (6,) and each deflection's worst error at the samples (6,) (rad or m).
+    """The linear fit θ ≈ C q + θ0 of a bushing's deflection over its coordinates' ranges: C (6, n),
+    θ0 (6,) and each deflection's worst error at the samples (6,) (rad or m). Least squares, which
+    is exact for a linear deflection; a deflection it leaves more than
+    :data:`BUSHING_LINEAR_TOLERANCE` off gets the minimax fit (the least worst error) instead.
     ``ends``: each frame's (body, transform in the body)."""
     if not coords:
         return np.zeros((6, 0)), _deflection(builder, {}, ends), np.zeros(6)
     ranges = _ranges(builder, coords)
     qs = _samples(ranges)
     defl = np.array([_deflection(builder, dict(zip(coords, map(float, q), strict=True)), ends) for q in qs])  # (m, 6)
+    design = np.hstack([qs, np.ones((qs.shape[0], 1))])
     if len(coords) == 1:  # the fit of the one-joint conversion, kept bit for bit
-        slope, offset = np.polyfit(qs[:, 0], defl, 1)
-        slopes = slope[:, None]
+        sol = np.polyfit(qs[:, 0], defl, 1)
     else:
-        design = np.hstack([qs, np.ones((qs.shape[0], 1))])
         sol = np.linalg.lstsq(design, defl, rcond=None)[0]  # (n + 1, 6)
-        slopes, offset = sol[:-1].T, sol[-1]
-    residual = np.max(np.abs(qs @ slopes.T + offset - defl), axis=0)
+    residual = np.max(np.abs(design @ sol - defl), axis=0)
+    for i in np.flatnonzero(residual > BUSHING_LINEAR_TOLERANCE):
+        sol[:, i], residual[i] = _minimax_line(design, defl[:, i])
+    slopes, offset = sol[:-1].T, sol[-1]
     slopes = np.where(np.abs(slopes) * (ranges[:, 1] - ranges[:, 0]) <= _ZERO_EFFECT, 0.0, slopes)
     return slopes, offset, residual
+
+
+def _minimax_line(design: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, float]:
+    """The coefficients x (k,) minimising max |design @ x - values| (design (m, k)), and that maximum:
+    a linear programme in (x, t), min t with -t <= design @ x - values <= t."""
+    m, k = design.shape
+    ones = np.ones((m, 1))
+    bounds = [(None, None)] * k + [(0.0, None)]
+    res = linprog(np.r_[np.zeros(k), 1.0], A_ub=np.block([[design, -ones], [-design, -ones]]),
+                  b_ub=np.r_[values, -values], bounds=bounds, method="highs")
+    if not res.success:  # keep least squares (HiGHS solves this small, always feasible programme)
+        x = np.linalg.lstsq(design, values, rcond=None)[0]
+        return x, float(np.max(np.abs(design @ x - values)))
+    x = res.x[:k]
+    return x, float(np.max(np.abs(design @ x - values)))
 
 
 def _deflection(builder: MjcfBuilder, changes: dict[str, float], ends) -> np.ndarray:
