@@ -76,6 +76,10 @@ class ConvertOptions:
             another point's carrier (:mod:`o2m.convert.carriers`). The default, 1 micrometre,
             is exact; a larger one gives a faster, approximate model (the report's notes name
             every point it changed).
+        bushing_tolerance: the worst deflection error (rad or m) a BushingForce's best linear fit
+            in its coordinates may have and still convert to fixed tendons or a joint spring
+            (:mod:`o2m.convert.bushings`). None, the default, converts only linear ones (exact);
+            the report records each approximated bushing's measured error.
     """
 
     fit_mechanics: bool = True
@@ -86,12 +90,15 @@ class ConvertOptions:
     workers: int | None = None
     plain_quartics: bool = False
     carrier_tolerance: float = CARRIER_AXIS_TOLERANCE
+    bushing_tolerance: float | None = None
 
     def __post_init__(self):
         if self.path_forces not in PATH_FORCE_MODES:
             raise ValueError(f"path_forces must be one of {', '.join(PATH_FORCE_MODES)}, not {self.path_forces!r}")
         if not 0.0 <= self.carrier_tolerance < float("inf"):
             raise ValueError(f"carrier_tolerance must be a distance in metres >= 0, not {self.carrier_tolerance!r}")
+        if self.bushing_tolerance is not None and not 0.0 <= self.bushing_tolerance < float("inf"):
+            raise ValueError(f"bushing_tolerance must be None or >= 0 (rad or m), not {self.bushing_tolerance!r}")
 
 
 def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = ConvertOptions(),  # noqa: B008 (frozen)
@@ -120,7 +127,8 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     splits = add_wrap_splits(builder, paths, wraps, str(osim)) if options.length_vias else []
     tendons = add_paths(builder, paths, wraps, path_forces=options.path_forces,
                         carrier_tolerance=options.carrier_tolerance)
-    force_conv = forces.add_forces(builder, reader)  # after the muscles: their actuators stay first
+    # after the muscles: their actuators stay first
+    force_conv = forces.add_forces(builder, reader, bushing_tolerance=options.bushing_tolerance)
     muscle_skipped = _fit_mechanics(result, osim, paths, doc) if options.fit_mechanics and any(
         p.owner_type in MUSCLE_TYPES for p in paths) else []
     search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs]

@@ -22,8 +22,8 @@ from o2m.convert.contact_fit import HuntCrossley, LinearContact
 from o2m.osim.functions import Function
 from o2m.osim.skeleton import SkeletonReader, Skipped
 
-__all__ = ["FAR", "N_GRID", "N_POSES", "ContactConversion", "ContactGeom", "ContactPair", "ForceConversion", "Ligament",
-           "LimitForce", "PoseDrift", "SideFit"]
+__all__ = ["FAR", "N_GRID", "N_POSES", "BushingFit", "ContactConversion", "ContactGeom", "ContactPair",
+           "ForceConversion", "Ligament", "LimitForce", "PoseDrift", "SideFit"]
 
 #: Samples of the coordinate (or tendon length) a fit and a measurement use.
 N_GRID = 241
@@ -147,6 +147,27 @@ class JointSpring:
 
 
 @dataclass
+class BushingFit:
+    """A BushingForce whose deflection θ (6,: frame 2's X-Y-Z angles, rad, and offset, m, in frame 1)
+    is taken as linear in its free coordinates, θ ≈ C q + θ0, and what it became: the joint spring
+    of its one coordinate, the fixed ``tendons`` of several, or nothing when none moves its frames."""
+
+    name: str
+    coordinates: list[str]  # the independent coordinates (each one's MuJoCo joint is named as it)
+    ends: list  # each frame's (body, Transform in the body)
+    stiffness: np.ndarray  # (6,) K: N m/rad (angles), N/m (offsets)
+    damping: np.ndarray  # (6,) D: N m s/rad, N s/m
+    slopes: np.ndarray  # (6, n) C
+    offsets: np.ndarray  # (6,) θ0
+    residual: np.ndarray  # (6,) each deflection's worst |C q + θ0 - θ| over the fit's samples
+    linear: np.ndarray = field(default_factory=lambda: np.zeros(6, bool))  # (6,) the deflections taken as C q + θ0
+    fit_error: float = 0.0  # their worst residual (rad or m)
+    joint_spring: bool = False  # they are its one coordinate's joint spring (else fixed tendons)
+    tendons: list[str] = field(default_factory=list)
+    form: str = ""  # what it became, for the report
+
+
+@dataclass
 class PoseDrift:
     """A global axis or point fixed in a body as at the default pose; measured after building."""
 
@@ -206,6 +227,7 @@ class ForceConversion:
     ligaments: list[Ligament] = field(default_factory=list)
     springs: list[Spring] = field(default_factory=list)
     joint_springs: list[JointSpring] = field(default_factory=list)
+    bushings: list[BushingFit] = field(default_factory=list)  # those with a joint spring are joint_springs too
     drifts: list[PoseDrift] = field(default_factory=list)
     actuators: list[str] = field(default_factory=list)
     contact: ContactConversion = field(default_factory=ContactConversion)
@@ -215,7 +237,8 @@ class ForceConversion:
     @property
     def converted(self) -> int:
         return (len(self.limit_forces) + len(self.ligaments) + len(self.springs) + len(self.joint_springs)
-                + len(self.actuators) + len(self.contact.forces))
+                + sum(not b.joint_spring for b in self.bushings) + len(self.actuators)
+                + len(self.contact.forces))
 
 
 @dataclass
@@ -224,6 +247,9 @@ class _Context:
     reader: SkeletonReader
     out: ForceConversion
     names: dict[str, set[str]]  # MJCF tag -> names in use
+    #: The worst deflection error (rad or m) of a BushingForce's linear fit that still converts;
+    #: None: only linear ones (:data:`o2m.convert.bushings.BUSHING_LINEAR_TOLERANCE`).
+    bushing_tolerance: float | None = None
 
     @property
     def spec(self) -> mujoco.MjSpec:

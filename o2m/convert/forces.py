@@ -8,9 +8,9 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
   (:mod:`o2m.convert.limit_forces`).
 * **Ligament**: a spring on the spatial tendon of its path (:mod:`o2m.convert.ligaments`).
 * **PointToPointSpring**: an exact spring on a two-site spatial tendon (:mod:`o2m.convert.springs`).
-* **BushingForce**: its joint's linear spring and damping where its frames are on the two bodies
-  of a one-coordinate joint that turns or slides about one of its axes (:mod:`o2m.convert.bushings`);
-  skipped otherwise.
+* **BushingForce**: where its deflections are linear in the coordinates between its frames, the
+  spring and damping of its one coordinate's joint or fixed tendons on several
+  (:mod:`o2m.convert.bushings`); skipped otherwise, unless within a given tolerance.
 * **ExpressionBasedCoordinateForce**: its joint's spring and damping when the expression is linear
   in q and qdot (:mod:`o2m.convert.expression_forces`); skipped otherwise.
 * **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
@@ -41,7 +41,7 @@ from o2m.convert.actuators import (
     measure_drifts,
 )
 from o2m.convert.builder import MjcfBuilder
-from o2m.convert.bushings import convert_bushing
+from o2m.convert.bushings import convert_bushing, measure_bushings
 from o2m.convert.contact import convert_hunt_crossley, fit_contacts, measure_contacts, skip_force, skip_unused_geometry
 from o2m.convert.expression_forces import convert_expression_force
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
@@ -73,13 +73,16 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
 FORCE_TYPES = frozenset(HANDLERS)
 
 
-def add_forces(builder: MjcfBuilder, reader: SkeletonReader) -> ForceConversion:
+def add_forces(builder: MjcfBuilder, reader: SkeletonReader, *, bushing_tolerance: float | None = None
+               ) -> ForceConversion:
     """Convert every force of the ForceSet that has a handler; call after the muscle paths (so the
-    actuators come after the muscles' and the ligaments' tendons exist)."""
+    actuators come after the muscles' and the ligaments' tendons exist). ``bushing_tolerance``:
+    the worst deflection error (rad or m) of a non-linear BushingForce's linear fit that still
+    converts (None: only linear ones)."""
     spec = builder.spec
     names = {"site": {s.name for s in spec.sites}, "tendon": {t.name for t in spec.tendons},
              "geom": {g.name for g in spec.geoms}, "pair": {p.name for p in spec.pairs}}
-    ctx = _Context(builder, reader, ForceConversion(), names)
+    ctx = _Context(builder, reader, ForceConversion(), names, bushing_tolerance)
     for el in reader.set_objects("ForceSet"):
         handler = HANDLERS.get(el.tag)
         if handler is None:
@@ -105,6 +108,9 @@ def restore_precision(xml: str, out: ForceConversion) -> str:
             for el in holder:
                 vals = out.exact.get((tag, el.get("name"))) if isinstance(el.tag, str) else None
                 mjcf_text.set_numbers(el, vals or {})
+                for part in el.findall("joint") if tag == "tendon" else []:  # a fixed tendon's coefficients
+                    key = ("tendon joint", f"{el.get('name')}/{part.get('joint')}")
+                    mjcf_text.set_numbers(part, out.exact.get(key, {}))
     return mjcf_text.to_text(root)
 
 
@@ -114,5 +120,6 @@ def measure(out: ForceConversion, model: mujoco.MjModel, osim: str | Path, build
     measure_limit_forces(out, model, osim, builder)
     measure_ligaments(out, model, builder)
     measure_springs(out, model, builder)
+    measure_bushings(out, model, builder)
     measure_drifts(out, builder)
     measure_contacts(out, model, builder)

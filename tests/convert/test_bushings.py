@@ -1,0 +1,261 @@
+"""BushingForce beyond one joint (o2m.convert.bushings) against OpenSim 4.6.
+
+A small model: ground -CustomJoint 'ball' (rotations about X, -Y through a mirrored function, Z
+through q -> 2 q + 0.1: a complement joint in MuJoCo)-> a -Pin p1-> b -Pin p2 (axis parallel to
+p1's)-> c, c -Weld-> d, c -Pin p3 (locked)-> e. Bushing 'ball' spans the 3-coordinate joint with
+frames on its axes (deflections linear in rx, ry, rz), 'chain' spans p1 and p2 (its Z angle is
+q1 + q2; its isotropic translational spring between points off the axes is not linear),
+'locked' spans p2 and the locked p3 (one free coordinate: a joint spring), 'points' is
+an isotropic translational spring between a and c, 'welded' joins c and d, 'composed' spans
+'ball' and p1 (rotations about different axes composed: not linear). The exact ones' MuJoCo
+passive force equals OpenSim's generalized force (M · Δu̇ with the bushing on and off) to 1e-9 of
+its size; the composed one is skipped with its measured non-linearity unless
+``bushing_tolerance`` accepts it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import opensim as osim
+import pytest
+
+from o2m.convert.converter import ConvertOptions, convert
+from o2m.mj.posing import pose_mujoco
+from tests.helpers import convert_options
+
+osim.Logger.setLevelString("error")
+
+COORDS = ["rx", "ry", "rz", "q1", "q2"]
+RANGES = {"rx": (-1.0, 1.0), "ry": (-1.0, 1.0), "rz": (-0.6, 0.6), "q1": (-1.0, 1.0), "q2": (-1.2, 1.4)}
+BUSHINGS = ("ball", "chain", "composed", "points", "points_damped", "welded", "locked")
+
+
+def _v(*a) -> osim.Vec3:
+    return osim.Vec3(*a)
+
+
+def _ball_joint(parent: osim.PhysicalFrame, child: osim.Body) -> osim.CustomJoint:
+    """Rotations rx about X, -ry about Y and 2 rz + 0.1 about Z (``set_function`` copies the
+    function; ``setFunction`` would take ownership and crash)."""
+    st = osim.SpatialTransform()
+    moving = {0: ("rx", (1.0, 0.0)), 1: ("ry", (-1.0, 0.0)), 2: ("rz", (2.0, 0.1))}
+    for i, axis in enumerate([(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 0), (0, 1, 0), (0, 0, 1)]):
+        ax = st.updTransformAxis(i)
+        names = osim.ArrayStr()
+        if i in moving:
+            names.append(moving[i][0])
+        ax.setCoordinateNames(names)
+        ax.setAxis(_v(*axis))
+        ax.set_function(osim.LinearFunction(*moving[i][1]) if i in moving else osim.Constant(0.0))
+    return osim.CustomJoint("ball", parent, _v(0.1, 0.9, -0.05), _v(0.2, -0.1, 0.4), child, _v(0.0, 0.15, 0.02),
+                            _v(-0.3, 0.2, 0.1), st)
+
+
+def _offset(name: str, joint_frame: osim.PhysicalOffsetFrame, body: osim.PhysicalFrame,
+            turn: tuple[float, float, float], shift: tuple[float, float, float] = (0.0, 0.0, 0.0)
+            ) -> osim.PhysicalOffsetFrame:
+    """A frame on ``body``: the joint frame turned by body-fixed X-Y-Z angles ``turn`` and shifted."""
+    rot = osim.Rotation(osim.BodyRotationSequence, turn[0], osim.CoordinateAxis(0), turn[1], osim.CoordinateAxis(1),
+                        turn[2], osim.CoordinateAxis(2))
+    frame = osim.PhysicalOffsetFrame(name, body, joint_frame.findTransformInBaseFrame().compose(
+        osim.Transform(rot, _v(*shift))))
+    body.addComponent(frame)
+    return frame
+
+
+def _build(path: Path) -> Path:
+    m = osim.Model()
+    m.setName(path.stem)
+    inertia = osim.Inertia(0.02, 0.012, 0.018, 0.001, -0.0005, 0.0002)
+    a, b, c = (osim.Body(n, mass, _v(*com), inertia) for n, mass, com in
+               [("a", 2.0, (0.03, -0.2, 0.01)), ("b", 1.2, (-0.02, -0.15, 0.03)), ("c", 0.8, (0.01, -0.1, 0.02))])
+    for body in (a, b, c):
+        m.addBody(body)
+    ball = _ball_joint(m.getGround(), a)
+    aligned = _v(0.3, -0.2, 0.5)  # p1's child frame and p2's parent frame: parallel pin axes
+    p1 = osim.PinJoint("p1", a, _v(0.05, -0.3, 0.02), _v(0.1, 0.2, -0.1), b, _v(0.0, 0.1, 0.0), aligned)
+    p2 = osim.PinJoint("p2", b, _v(0.02, -0.25, 0.01), aligned, c, _v(0.01, 0.12, -0.02), _v(-0.2, 0.1, 0.3))
+    for joint in (ball, p1, p2):
+        m.addJoint(joint)
+        for i in range(joint.numCoordinates()):
+            coord = joint.upd_coordinates(i)
+            if joint.getName() != "ball":
+                coord.setName({"p1": "q1", "p2": "q2"}[joint.getName()])
+            lo, hi = RANGES[coord.getName()]
+            coord.setRangeMin(lo)
+            coord.setRangeMax(hi)
+    d = osim.Body("d", 0.3, _v(0.0, -0.05, 0.0), inertia)
+    e = osim.Body("e", 0.5, _v(0.01, -0.04, 0.0), inertia)
+    m.addBody(d)
+    m.addBody(e)
+    m.addJoint(osim.WeldJoint("weld", c, _v(0.0, -0.2, 0.0), _v(0.1, 0.0, 0.0), d, _v(0.0, 0.0, 0.0),
+                              _v(0.0, 0.0, 0.0)))
+    p3 = osim.PinJoint("p3", c, _v(0.0, -0.2, 0.0), _v(0.4, 0.1, -0.3), e, _v(0.0, 0.0, 0.0), _v(0.4, 0.1, -0.3))
+    m.addJoint(p3)
+    p3.upd_coordinates(0).setName("q3")  # locked at 0: e's frame is c's, shifted
+    p3.upd_coordinates(0).setDefaultLocked(True)
+    frames = {"ball": (_offset("ball_1", ball.getParentFrame(), m.getGround(), (0.3, 0.0, 0.0), (0.02, -0.01, 0.03)),
+                       _offset("ball_2", ball.getChildFrame(), a, (0.0, 0.0, 0.2))),
+              "chain": (_offset("chain_1", p1.getParentFrame(), a, (0.0, 0.0, 0.0)),
+                        _offset("chain_2", p2.getChildFrame(), c, (0.0, 0.0, -0.2), (0.05, -0.1, 0.02))),
+              "composed": (_offset("composed_1", ball.getParentFrame(), m.getGround(), (0.0, 0.0, 0.0)),
+                           _offset("composed_2", p1.getChildFrame(), b, (0.0, 0.0, 0.0))),
+              "welded": (_offset("welded_1", p2.getChildFrame(), c, (0.1, 0.2, 0.3), (0.01, 0.02, 0.03)),
+                         osim.PhysicalOffsetFrame("welded_2", d, osim.Transform(_v(0.02, 0.0, -0.01))))}
+    d.addComponent(frames["welded"][1])
+    frames["locked"] = (_offset("locked_1", p2.getParentFrame(), b, (0.0, 0.0, 0.1)),
+                        osim.PhysicalOffsetFrame("locked_2", e, p2.getChildFrame().findTransformInBaseFrame()))
+    e.addComponent(frames["locked"][1])
+    for name in ("points", "points_damped"):
+        frames[name] = (_offset(f"{name}_1", p1.getParentFrame(), a, (0.2, -0.1, 0.4), (0.03, 0.02, -0.01)),
+                        _offset(f"{name}_2", p2.getChildFrame(), c, (0.0, 0.3, 0.0), (0.05, -0.1, 0.02)))
+    stiffness = {"ball": ((40.0, 50.0, 60.0), (30.0, 20.0, 10.0)), "chain": ((200.0,) * 3, (30.0, 20.0, 10.0)),
+                 "points": ((500.0,) * 3, (0.0,) * 3),
+                 "points_damped": ((500.0,) * 3, (0.0,) * 3)}
+    damping = {"points": ((0.0,) * 3, (0.0,) * 3), "points_damped": ((2.0,) * 3, (0.0,) * 3)}
+    for name, (f1, f2) in frames.items():
+        trans, rot = stiffness.get(name, ((0.0,) * 3, (30.0, 20.0, 10.0)))
+        trans_damp, rot_damp = damping.get(name, ((0.0,) * 3, (0.3, 0.5, 0.7)))
+        # Python's argument order: translational stiffness, rotational stiffness, then the dampings
+        m.addForce(osim.BushingForce(name, f1, f2, _v(*trans), _v(*rot), _v(*trans_damp), _v(*rot_damp)))
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return path
+
+
+def _opensim_forces(path: Path, bushing: str, states) -> list[np.ndarray]:
+    """OpenSim's generalized force (coordinate order) of ``bushing`` alone at each (q, qdot): M · Δu̇
+    with it on and off, M and u̇ in mobility order."""
+    model = osim.Model(str(path))
+    state = model.initSystem()
+    cs = model.getCoordinateSet()
+    matter = model.getMatterSubsystem()
+    order = []
+    for c in COORDS:  # each coordinate's mobility: the one u its speed sets
+        st = osim.State(state)
+        for other in COORDS:
+            cs.get(other).setSpeedValue(st, float(other == c))
+        order.append(int(np.argmax(np.abs([st.getU().get(i) for i in range(st.getNU())]))))
+    out = []
+    for q, qdot in states:
+        udot = []
+        for on in (False, True):
+            st = osim.State(state)
+            for c, qi, vi in zip(COORDS, q, qdot, strict=True):
+                cs.get(c).setValue(st, float(qi), False)
+                cs.get(c).setSpeedValue(st, float(vi))
+            for name in BUSHINGS:
+                model.getForceSet().get(name).setAppliesForce(st, on and name == bushing)
+            model.realizeAcceleration(st)
+            udot.append(np.array([st.getUDot().get(i) for i in range(st.getNU())]))
+        mass = osim.Matrix()
+        matter.calcM(st, mass)
+        full = np.array([[mass.get(i, j) for j in range(mass.ncol())] for i in range(mass.nrow())])
+        out.append((full @ (udot[1] - udot[0]))[order])
+    return out
+
+
+def _mujoco_forces(xml: Path, tendons: list[str], states, joints: tuple[str, ...] = ()) -> list[np.ndarray]:
+    """MuJoCo's passive force on the coordinates' joints with only the springs and dampers of
+    ``tendons`` and ``joints`` on, at each (q, qdot); asserts every other dof gets none (to round-off)."""
+    m = mujoco.MjModel.from_xml_path(str(xml))
+    keep_joints = [m.joint(j).id for j in joints]
+    for arr, keep in ((m.tendon_stiffness, [m.tendon(t).id for t in tendons]),
+                      (m.tendon_damping, [m.tendon(t).id for t in tendons]), (m.jnt_stiffness, keep_joints),
+                      (m.dof_damping, [int(m.jnt_dofadr[j]) for j in keep_joints])):
+        mask = np.ones(arr.shape[0], bool)
+        mask[keep] = False
+        arr[mask] = 0.0
+    d = mujoco.MjData(m)
+    dofs = [int(m.jnt_dofadr[m.joint(c).id]) for c in COORDS]
+    out = []
+    for q, qdot in states:
+        pose_mujoco(m, d, dict(zip(COORDS, map(float, q), strict=True)))
+        d.qvel[:] = 0.0
+        d.qvel[dofs] = qdot
+        mujoco.mj_forward(m, d)
+        others = np.delete(d.qfrc_passive, dofs)  # a spatial tendon's, above its bodies: round-off
+        assert np.abs(others).max(initial=0.0) <= 1e-12 * max(1.0, np.abs(d.qfrc_passive).max())
+        out.append(d.qfrc_passive[dofs].copy())
+    return out
+
+
+def _states(n: int, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    lo, hi = np.array([RANGES[c] for c in COORDS]).T
+    return [(rng.uniform(lo, hi), rng.uniform(-2.0, 2.0, len(COORDS))) for _ in range(n)]
+
+
+@pytest.fixture(scope="module")
+def model_path(tmp_path_factory) -> Path:
+    return _build(tmp_path_factory.mktemp("bushings") / "bushings.osim")
+
+
+def test_linear_bushings_become_exact_fixed_tendons(model_path, tmp_path):
+    """'ball' (3 coordinates of one joint) and 'chain' (two joints) become fixed tendons, one per
+    stiff or damped angle or offset their coordinates move (ball's constant offsets none), and
+    chain's translational spring a zero-length spatial tendon; so does 'points' (an
+    isotropic translational spring) a zero-length spatial tendon; 'locked' the spring and damping
+    of q2, the one free coordinate between its frames; 'welded' nothing. Each one's MuJoCo
+    passive force equals OpenSim's generalized force to 1e-9 of its size at seeded poses and speeds.
+    'composed' is skipped with its measured non-linearity, 'points_damped' for its damping across
+    the line."""
+    conv = convert(model_path, tmp_path / "out", convert_options(fit_mechanics=False))
+    skipped = {s.name: s.reason for s in conv.report.skipped if s.element == "BushingForce"}
+    assert set(skipped) == {"composed", "points_damped"}
+    worst = float(skipped["composed"].split("up to ")[1].split(" rad")[0])
+    assert "not linear in 'rx', 'ry', 'rz', 'q1'" in skipped["composed"] and worst > 0.01
+    assert "damping (2 N s/m)" in skipped["points_damped"]
+    assert any("'welded': its frames do not move" in n for n in conv.report.notes)
+    assert conv.report.counts["other forces"] == len(BUSHINGS) - len(skipped)  # each converted one once
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    tendons = {name: sorted(m.tendon(i).name for i in range(m.ntendon)
+                            if m.tendon(i).name == name or m.tendon(i).name.startswith(name + "_"))
+               for name in ("ball", "chain", "points")}
+    assert tendons == {"ball": ["ball_rx", "ball_ry", "ball_rz"], "chain": ["chain", "chain_rz"], "points": ["points"]}
+    states = _states(6, seed=3)
+    for name, ts in tendons.items():
+        expected = _opensim_forces(model_path, name, states)
+        for got, want in zip(_mujoco_forces(conv.xml, ts, states), expected, strict=True):
+            assert np.abs(want).max() > 0.1
+            np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-9 * np.abs(want).max())
+        [approx] = [a for a in conv.report.approximations if a.element == "BushingForce" and a.name == name]
+        assert approx.max_error < 1e-6
+    [locked] = [a for a in conv.report.approximations if a.element == "BushingForce" and a.name == "locked"]
+    assert "joint 'q2'" in locked.what and locked.max_error < 1e-6
+    q2 = m.joint("q2").id
+    assert (m.jnt_stiffness[q2], m.qpos_spring[m.jnt_qposadr[q2]], m.dof_damping[m.jnt_dofadr[q2]]) == \
+        pytest.approx((10.0, 0.1, 0.7), rel=1e-12)  # K_z, the frames' 0.1 rad turn, D_z
+    expected = _opensim_forces(model_path, "locked", states)
+    for got, want in zip(_mujoco_forces(conv.xml, [], states, joints=("q2",)), expected, strict=True):
+        assert np.abs(want).max() > 0.1
+        np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-9 * np.abs(want).max())
+    welded = _opensim_forces(model_path, "welded", states)
+    assert max(np.abs(w).max() for w in welded) < 1e-9  # what OpenSim applies moves no coordinate
+
+
+def test_bushing_tolerance_converts_approximations(model_path, tmp_path):
+    """With a bushing_tolerance above its measured non-linearity 'composed' becomes fixed tendons
+    and 'points_damped' a spatial tendon (its damping along the line only); the report records
+    their generalized-force errors. Below it, 'composed' stays skipped. A negative tolerance is
+    refused."""
+    default = convert(model_path, tmp_path / "default", convert_options(fit_mechanics=False))
+    [reason] = [s.reason for s in default.report.skipped if s.name == "composed"]
+    worst = float(reason.split("up to ")[1].split(" rad")[0])
+    below = convert(model_path, tmp_path / "below", convert_options(fit_mechanics=False,
+                                                                     bushing_tolerance=worst / 2))
+    assert [s.name for s in below.report.skipped if s.element == "BushingForce"] == ["composed"]
+    above = convert(model_path, tmp_path / "above", convert_options(fit_mechanics=False,
+                                                                    bushing_tolerance=worst * 2))
+    assert not [s for s in above.report.skipped if s.element == "BushingForce"]
+    approx = {a.name: a for a in above.report.approximations if a.element == "BushingForce"}
+    assert approx["composed"].max_error > 0.0 and f"{worst:.3g}" in approx["composed"].what
+    assert approx["points_damped"].max_error > 0.0 and "along the line only" in approx["points_damped"].what
+    m = mujoco.MjModel.from_xml_path(str(above.xml))
+    assert {m.tendon(i).name for i in range(m.ntendon)} >= {"composed_rx", "composed_ry", "composed_rz",
+                                                             "points_damped"}
+    with pytest.raises(ValueError, match="bushing_tolerance"):
+        ConvertOptions(bushing_tolerance=-1.0)
