@@ -38,3 +38,17 @@ def test_the_flag_is_set_on_the_spec_only_for_one_island():
         assert disable_single_island(spec, spec.compile()) is one
         flags = mujoco.MjModel.from_xml_string(spec.to_xml()).opt.disableflags
         assert bool(flags & mujoco.mjtDisableBit.mjDSBL_ISLAND) is one
+
+
+def test_a_converted_one_tree_model_has_islands_off_and_says_so(tmp_path):
+    from o2m.convert.converter import convert
+    from tests.helpers import convert_options, pin_pendulum
+
+    model, _ = pin_pendulum("islands")
+    model.finalizeConnections()
+    model.initSystem()
+    model.printToXML(str(tmp_path / "islands.osim"))
+    conv = convert(tmp_path / "islands.osim", tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_ISLAND
+    assert any("constraint islands disabled" in note for note in conv.report.notes)
