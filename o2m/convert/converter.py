@@ -23,6 +23,7 @@ from o2m.convert import forces
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.constraints import add_constraints
+from o2m.convert.islands import disable_single_island
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.massless import check_massless
 from o2m.convert.muscles import fit_muscles
@@ -162,7 +163,10 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
         forces.fit_ligaments(force_conv, spec, model, builder)
         forces.fit_contacts(force_conv, spec, model, builder)
         spec.add_key(name="default-pose", qpos=model.qpos0.copy())
-        spec.compile()
+        if disable_single_island(spec, spec.compile()):
+            result.notes.append("constraint islands disabled (<flag island=\"disable\"/>): the degrees of freedom "
+                                "are one kinematic tree, or trees tied together by joint equalities, so MuJoCo's "
+                                "island search would always find one island")
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
         xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), model.qpos0)

@@ -6,7 +6,10 @@ converted paper model first; e.g. also an earlier conversion or the wrapped MoBL
 
 * a plain ``mj_step`` loop on one thread, each set ``repeats`` times: median and 10th-90th
   percentile of the wall-clock time of one 1-s simulation, and the median thread CPU time (what a
-  busy machine's other processes do not inflate);
+  busy machine's other processes do not inflate). The models' loops are interleaved, set by set
+  (:func:`interleaved_loops`), so that a load that comes and goes weighs on all of them alike, and
+  each other model's thread CPU time is also given as the median ratio to the converted model's
+  on the same set and repeat (``cpu_vs_converted``);
 * the per-step time and its breakdown by MuJoCo's own timers (``mjData.timer``, microseconds);
 * their ratio to OpenSim's, by wall clock and by thread CPU time;
 * batched :func:`o2m.mj.simulate.rollout` throughput (simulations per second) on 1 thread and on
@@ -25,7 +28,7 @@ from collections.abc import Mapping
 import mujoco
 import numpy as np
 
-__all__ = ["format_speed", "measure_model", "measure_speed"]
+__all__ = ["format_speed", "interleaved_loops", "measure_model", "measure_speed"]
 
 #: MuJoCo timers reported in the per-step breakdown (``mjtTimer`` names without the prefix):
 #: kinematics includes the tendons (``mj_tendon``), constraint the solver.
@@ -43,6 +46,25 @@ def _one_loop(model: mujoco.MjModel, data: mujoco.MjData, state: np.ndarray,
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data)
     return time.perf_counter() - wall, time.thread_time() - cpu
+
+
+def interleaved_loops(cases: Mapping[str, tuple[mujoco.MjModel, np.ndarray, np.ndarray]],
+                      repeats: int) -> dict[str, np.ndarray]:
+    """Wall and thread CPU seconds, shape (repeats * S, 2), of every set of every case (name ->
+    (model, init (S, nstate), controls (S, T - 1, nu)); the same S for all), the cases' loops
+    taking turns set by set, each case warmed up once first."""
+    datas = {name: mujoco.MjData(model) for name, (model, _, _) in cases.items()}
+    for name, (model, init, controls) in cases.items():
+        _one_loop(model, datas[name], init[0], controls[0])
+    n_sets = {len(init) for _, init, _ in cases.values()}
+    if len(n_sets) != 1:
+        raise ValueError(f"interleaved_loops needs the same number of sets for every case, not {sorted(n_sets)}")
+    runs: dict[str, list[tuple[float, float]]] = {name: [] for name in cases}
+    for _ in range(repeats):
+        for i in range(next(iter(n_sets))):
+            for name, (model, init, controls) in cases.items():
+                runs[name].append(_one_loop(model, datas[name], init[i], controls[i]))
+    return {name: np.array(r) for name, r in runs.items()}
 
 
 def step_breakdown(model: mujoco.MjModel, state: np.ndarray, controls: np.ndarray, loops: int = 3) -> dict[str, float]:
@@ -73,12 +95,13 @@ def rollout_throughput(model: mujoco.MjModel, init: np.ndarray, controls: np.nda
 
 
 def measure_model(model: mujoco.MjModel, init: np.ndarray, controls: np.ndarray, *, repeats: int = 5,
-                  batch: int = 64) -> dict:
+                  batch: int = 64, runs: np.ndarray | None = None) -> dict:
     """Speed of ``model`` on the sets ``init`` (S, nstate) and ``controls`` (S, T - 1, nu): see the
-    module docstring; seconds per 1-s simulation, microseconds per step, simulations per second."""
-    data = mujoco.MjData(model)
-    _one_loop(model, data, init[0], controls[0])  # warm-up
-    runs = np.array([_one_loop(model, data, s, c) for _ in range(repeats) for s, c in zip(init, controls, strict=True)])
+    module docstring; seconds per 1-s simulation, microseconds per step, simulations per second.
+    ``runs``: its loops' (wall, CPU) seconds (n, 2) already timed (:func:`interleaved_loops`), else
+    timed here, each set ``repeats`` times."""
+    if runs is None:
+        runs = interleaved_loops({"model": (model, init, controls)}, repeats)["model"]
     idx = np.resize(np.arange(len(init)), batch)
     cores = os.cpu_count() or 1
     rates = {n: rollout_throughput(model, init[idx], controls[idx], n) for n in sorted({1, cores})}
@@ -131,15 +154,17 @@ def measure_speed(data_dir: str = "data/mobl_arms", *, n_sets: int = 5, model_di
             os_cpu.append(time.thread_time() - cpu if run.ok else np.nan)
     os_med = float(np.nanmedian(os_times)) if os_times else float("nan")
     os_cpu_med = float(np.nanmedian(os_cpu)) if os_cpu else float("nan")
-    measured = {"converted": measure_model(exp.model, exp.init[sets], exp.controls[sets], repeats=repeats, batch=batch)}
+    cases = {"converted": (exp.model, exp.init[sets], exp.controls[sets])}
     for name, xml in (others or {}).items():
         model = mujoco.MjModel.from_xml_path(str(xml))
-        measured[name] = measure_model(model, initial_states(model, ds, sets),
-                                       controls_from_excitations(model, exp.muscles, ds.activations.values[sets]),
-                                       repeats=repeats, batch=batch)
-    for m in measured.values():
+        cases[name] = (model, initial_states(model, ds, sets),
+                       controls_from_excitations(model, exp.muscles, ds.activations.values[sets]))
+    runs = interleaved_loops(cases, repeats)
+    measured = {name: measure_model(*case, batch=batch, runs=runs[name]) for name, case in cases.items()}
+    for name, m in measured.items():
         m["ratio"] = os_med / m["median_s"]
         m["cpu_ratio"] = os_cpu_med / m["cpu_median_s"]
+        m["cpu_vs_converted"] = float(np.median(runs[name][:, 1] / runs["converted"][:, 1]))
     main = measured["converted"]
     return {"sets": sets, "opensim_s": os_times, "opensim_median_s": os_med, "opensim_cpu_s": os_cpu,
             "opensim_cpu_median_s": os_cpu_med,
@@ -157,12 +182,14 @@ def format_speed(speed: dict) -> str:
              f"(integration only, median of {len(speed['opensim_s'])} sets; thread CPU time, loading included: "
              f"{speed.get('opensim_cpu_median_s', float('nan')):.2f} s); {speed['machine']}, "
              f"load average {speed.get('load_average', float('nan')):.1f}, MuJoCo {speed['mujoco_version']}",
-             f"{'model':>12} {'nv':>4} {'eq':>4} {'1-s sim ms (p10-p90)':>22} {'cpu ms':>7} {'ratio':>6} {'cpu':>6} "
+             f"{'model':>12} {'nv':>4} {'eq':>4} {'1-s sim ms (p10-p90)':>22} {'cpu ms':>7} {'/conv':>6} "
+             f"{'ratio':>6} {'cpu':>6} "
              f"{'rollout/s 1 thr':>15} {'all':>6} {'/core':>6} {'scaling':>7} {'/cpu-s 1 thr':>12} {'all':>6}"]
     for name, m in speed["models"].items():
         per = m["rollout_per_s"]
         lines.append(f"{name:>12} {m['nv']:>4} {m['equalities']:>4} {m['median_s'] * 1e3:>8.1f} "
                      f"({m['p10_s'] * 1e3:5.1f}-{m['p90_s'] * 1e3:5.1f}) {m['cpu_median_s'] * 1e3:>7.1f} "
+                     f"{m.get('cpu_vs_converted', float('nan')):>6.3f} "
                      f"{m['ratio']:>6.0f} {m.get('cpu_ratio', float('nan')):>6.0f} {per['1']:>15.1f} "
                      f"{per[max(per, key=int)]:>6.1f} "
                      f"{m['rollout_per_s_per_core']:>6.1f} {m['rollout_scaling']:>7.2f} "

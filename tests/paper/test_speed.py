@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import pytest
 
-from o2m.paper.speed import BREAKDOWN, format_speed, measure_model
+from o2m.paper.speed import BREAKDOWN, format_speed, interleaved_loops, measure_model
 
 PENDULUM = """<mujoco><option timestep="0.002"/><worldbody><body><joint name="q" type="hinge" axis="0 1 0"/>
 <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.02"/></body></worldbody>
@@ -28,3 +29,18 @@ def test_measure_model_reports_every_run_timer_and_thread_count():
     table = format_speed({"opensim_median_s": 1.0, "opensim_s": [1.0], "machine": "test", "mujoco_version": "4",
                           "models": {"converted": m}})
     assert "converted" in table and "1000" in table
+
+
+def test_interleaved_loops_time_every_set_of_every_model_and_refuse_unequal_sets():
+    pendulum = mujoco.MjModel.from_xml_string(PENDULUM)
+    heavier = mujoco.MjModel.from_xml_string(PENDULUM.replace('size="0.02"', 'size="0.05"'))
+    size = mujoco.mj_stateSize(pendulum, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    init = np.zeros((2, size))  # time 0, at rest, upright
+    controls = np.random.default_rng(1).uniform(-1, 1, (2, 20, 1))
+    runs = interleaved_loops({"a": (pendulum, init, controls), "b": (heavier, init, controls)}, repeats=3)
+    assert set(runs) == {"a", "b"}
+    assert all(r.shape == (6, 2) and np.all(r > 0) for r in runs.values())
+    m = measure_model(pendulum, init, controls, batch=2, runs=runs["a"])
+    assert m["runs"] == 6
+    with pytest.raises(ValueError, match="same number of sets"):
+        interleaved_loops({"a": (pendulum, init, controls), "b": (heavier, init[:1], controls[:1])}, repeats=1)
