@@ -90,6 +90,24 @@ def approximation_budget(xml, approximations) -> dict[str, tuple[float, float]]:
     return {m.body(b).name: (float(total[b, 0]), float(total[b, 1])) for b in range(1, m.nbody)}
 
 
+#: A one-muscle pendulum: a hinge lifted by a straight tendon whose moment arm changes with the angle.
+MUSCLE_PENDULUM = """
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <body name="link" pos="0 0 1">
+      <joint name="swing" type="hinge" axis="0 1 0" damping="0.05"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1"/>
+      <site name="tip" pos="0.5 0 0"/>
+    </body>
+    <site name="anchor" pos="0.3 0 1.4"/>
+  </worldbody>
+  <tendon><spatial name="lifter"><site site="anchor"/><site site="tip"/></spatial></tendon>
+  <actuator><muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/></actuator>
+</mujoco>
+"""
+
+
 def pin_pendulum(name: str, q_range: tuple[float, float] = (-1.0, 1.5),
                  arm_com: tuple[float, float, float] = (0.15, 0.0, 0.0)):
     """An OpenSim model ``name``: ground -> body "arm" (1 kg, centre of mass ``arm_com`` m,

@@ -19,28 +19,13 @@ from o2m.paper.floor import (
     replay_instability,
     tendon_force_run,
 )
-
-PENDULUM = """
-<mujoco>
-  <option timestep="0.002"/>
-  <worldbody>
-    <body name="link" pos="0 0 1">
-      <joint name="swing" type="hinge" axis="0 1 0" damping="0.05"/>
-      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1"/>
-      <site name="tip" pos="0.5 0 0"/>
-    </body>
-    <site name="anchor" pos="0.3 0 1.4"/>
-  </worldbody>
-  <tendon><spatial name="lifter"><site site="anchor"/><site site="tip"/></spatial></tendon>
-  <actuator><muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/></actuator>
-</mujoco>
-"""
+from tests.helpers import MUSCLE_PENDULUM
 
 
 def _experiment(tmp_path):
     """A one-muscle 'OpenSim' dataset made by the force-driven model itself: its own tendon forces and trajectory."""
     xml = tmp_path / "pendulum.xml"
-    xml.write_text(PENDULUM)
+    xml.write_text(MUSCLE_PENDULUM)
     model = force_driven(xml, ["lifter"])
     t = np.arange(251) * model.opt.timestep
     forces = (15.0 + 10.0 * np.sin(2 * np.pi * 2 * t))[None, :, None]  # (1, T, 1) N
@@ -137,7 +122,7 @@ def test_muscle_feedback_vanishes_on_the_recorded_trajectory_and_a_stiff_muscle_
     at activation 0.5) answers a start 0.2 rad off: the run ends nearer the recorded trajectory than
     the replay of the recorded forces, which nothing pulls back."""
     exp, model = _experiment(tmp_path)
-    stiff = PENDULUM.replace('<muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/>',
+    stiff = MUSCLE_PENDULUM.replace('<muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/>',
                              '<general name="lifter" tendon="lifter" dyntype="filter" dynprm="0.01" '
                              'gaintype="affine" gainprm="0 -4000 -100"/>')
     muscle_model = mujoco.MjModel.from_xml_string(stiff)

@@ -11,6 +11,7 @@ import numpy as np
 
 from o2m.mj.simulate import initial_state
 from o2m.paper.pipeline import FULL, QUICK, correct_sets, correction_key
+from tests.helpers import MUSCLE_PENDULUM
 
 MODEL = """
 <mujoco><worldbody><body><joint name="j" type="hinge" damping="{d}"/><geom size="0.1" mass="1"/></body></worldbody>
@@ -29,20 +30,6 @@ def test_correction_key_changes_with_any_model_field_sets_or_budget():
     assert correction_key(m, [1, 2], FULL, False) != key
 
 
-MUSCLE_PENDULUM = """
-<mujoco>
-  <worldbody>
-    <body name="link" pos="0 0 1">
-      <joint name="swing" type="hinge" axis="0 1 0" damping="0.05"/>
-      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1"/>
-      <site name="tip" pos="0.5 0 0"/>
-    </body>
-    <site name="anchor" pos="0.3 0 1.4"/>
-  </worldbody>
-  <tendon><spatial name="lifter"><site site="anchor"/><site site="tip"/></spatial></tendon>
-  <actuator><muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/></actuator>
-</mujoco>
-"""
 
 
 def test_corrections_computed_equal_corrections_loaded_from_the_cache(tmp_path):
