@@ -1,19 +1,21 @@
 """OpenSim against itself: how far OpenSim's own trajectories move under changes that should not matter.
 
 The paper's dataset (``data/mobl_arms``) was made with OpenSim's RungeKuttaMerson at accuracy
-1e-5. This module reruns the 19 test sets with one change at a time (a *variant*): a tighter
-integrator accuracy, every muscle's max isometric force scaled by 1 + 1e-3, or the initial elbow
-angle moved by 1e-4 rad, and measures each run's mean absolute difference (rad) from the stored
-trajectory per set and joint. Where OpenSim's self-spread is as large as MuJoCo's error, no
-converter can be judged below it on those sets.
+1e-5. This module reruns the 19 test sets with one change at a time (a *variant*, :data:`VARIANTS`):
+a tighter integrator accuracy, every muscle's max isometric force scaled by 1 + 1e-3 (or 1e-2),
+BRA's optimal fibre length 0.1 mm longer, or the initial elbow angle moved by 1e-4 rad, and
+measures each run's mean absolute difference (rad) from the stored trajectory per set and joint.
+Where OpenSim's self-spread is as large as MuJoCo's error, no converter can be judged below it on
+those sets.
 
 ``python -m o2m.paper.self_spread [--variants NAME ...] [--max-workers 1]`` runs the variants
 (each run in its own process through :func:`o2m.osim.simulate.run_isolated`; every finished run
 is kept under ``--runs``, so an interrupted command resumes), prints the table next to MuJoCo's
 per-set errors (``results/results.npz``) and writes ``<data>/self_spread.npz``:
 
-``variants``, ``descriptions`` (V,); ``accuracy``, ``force_scale`` (V,); ``initial_offsets`` (V,)
-JSON ``{state name: added value}``; ``sets`` (S,) test set indices; ``dofs`` (D,);
+``variants``, ``descriptions``, ``accuracy`` (V,); ``muscle_edits`` (V,) JSON ``[[muscle,
+property, factor, added], ...]``; ``initial_offsets`` (V,) JSON ``{state name: added value}``;
+``sets`` (S,) test set indices; ``dofs`` (D,);
 ``spread`` and ``spread_max`` (V, S, D) rad, mean and max absolute difference from the stored
 trajectory over the 1 s (NaN where a variant was not run on a set or failed); ``trajectories``
 (V, S, T, D) float32 rad; ``status`` (V, S); ``wall_time`` (V, S) s; ``mujoco_fitted`` (S, D)
@@ -38,8 +40,8 @@ from o2m import models
 from o2m.osim.simulate import IntegratorSettings, OpenSimRun, read_initial_state, run_isolated
 from o2m.paper.dataset import MOBL_INITIAL_STATE, MOBL_MODEL, Dataset, load_dataset
 
-__all__ = ["VARIANTS", "Variant", "compare_runs", "load_spread", "print_table", "run_variant", "scale_muscle_forces",
-           "spread_table", "write_spread"]
+__all__ = ["VARIANTS", "Variant", "compare_runs", "edit_muscles", "load_spread", "mujoco_errors", "print_table",
+           "run_variant", "scale_muscle_forces", "spread_table", "write_spread"]
 
 DATA_DIR = Path("data/mobl_arms")
 #: The test sets with MuJoCo's largest elbow errors (the floor section of docs/paper.md).
@@ -55,7 +57,9 @@ class Variant:
         name: short label (a folder name).
         description: what changed, in words.
         settings: the integrator settings.
-        force_scale: factor on every muscle's ``max_isometric_force`` (1: the model as it is).
+        muscle_edits: ``(muscle, property, factor, added)`` changes to the model file: the
+            muscle's ``property`` element becomes ``value * factor + added`` (SI units); muscle
+            ``"*"`` means every muscle. Empty: the model as it is.
         initial_offsets: ``(state name, added value)`` pairs on the initial state (rad, rad/s).
         sets: the test sets to run (None: all of them).
     """
@@ -63,7 +67,7 @@ class Variant:
     name: str
     description: str
     settings: IntegratorSettings = field(default_factory=IntegratorSettings)
-    force_scale: float = 1.0
+    muscle_edits: tuple[tuple[str, str, float, float], ...] = ()
     initial_offsets: tuple[tuple[str, float], ...] = ()
     sets: tuple[int, ...] | None = None
 
@@ -71,28 +75,45 @@ class Variant:
 #: The variants, cheapest questions first. ``rerun`` is the dataset's own run repeated.
 VARIANTS = (
     Variant("accuracy_1e-6", "integrator accuracy 1e-6", IntegratorSettings(accuracy=1e-6)),
-    Variant("force_1e-3", "every muscle's max_isometric_force x (1 + 1e-3)", force_scale=1.001),
+    Variant("force_1e-3", "every muscle's max_isometric_force x (1 + 1e-3)",
+            muscle_edits=(("*", "max_isometric_force", 1.001, 0.0),)),
     Variant("elbow_1e-4", "initial elbow_flexion + 1e-4 rad", initial_offsets=(("elbow_flexion", 1e-4),)),
     Variant("rerun", "the dataset's settings, run again", sets=FIRST),
     Variant("accuracy_1e-7", "integrator accuracy 1e-7", IntegratorSettings(accuracy=1e-7),
             sets=FIRST),
+    Variant("bra_fiber_0.1mm", "BRA's optimal_fiber_length + 0.1 mm",
+            muscle_edits=(("BRA", "optimal_fiber_length", 1.0, 1e-4),)),
+    Variant("force_1e-2", "every muscle's max_isometric_force x (1 + 1e-2)",
+            muscle_edits=(("*", "max_isometric_force", 1.01, 0.0),)),
 )
 
 
-def scale_muscle_forces(src: str | Path, dst: str | Path, scale: float) -> int:
-    """Write ``src`` to ``dst`` with every ``max_isometric_force`` (N) multiplied by ``scale``.
+def edit_muscles(src: str | Path, dst: str | Path, edits: tuple[tuple[str, str, float, float], ...]) -> int:
+    """Write ``src`` to ``dst`` with muscle properties changed (see :attr:`Variant.muscle_edits`).
 
-    Returns the number of values changed. The document is otherwise untouched (lxml keeps the
-    text of every other element), so OpenSim reads the same model with stronger muscles.
+    A muscle is any element with a ``name`` attribute and the property as a child (the model's
+    defaults section included). Returns the number of values changed; raises ``KeyError`` when
+    an edit changes nothing. The rest of the document is left as it is, so OpenSim reads the
+    same model but for the edits.
     """
     tree = etree.parse(str(src))
-    elements = tree.getroot().iter("max_isometric_force")
     count = 0
-    for el in elements:
-        el.text = repr(float(el.text) * scale)
-        count += 1
+    for muscle, prop, factor, added in edits:
+        path = f".//*[@name]/{prop}" if muscle == "*" else f".//*[@name='{muscle}']/{prop}"
+        found = tree.getroot().findall(path)
+        if not found:
+            raise KeyError(f"{src}: no {prop} of muscle {muscle}")
+        for el in found:
+            el.text = repr(float(el.text) * factor + added)
+        count += len(found)
     tree.write(str(dst), xml_declaration=True, encoding="UTF-8")
     return count
+
+
+def scale_muscle_forces(src: str | Path, dst: str | Path, scale: float) -> int:
+    """Write ``src`` to ``dst`` with every ``max_isometric_force`` (N) multiplied by ``scale``;
+    returns the number of values changed."""
+    return edit_muscles(src, dst, (("*", "max_isometric_force", scale, 0.0),))
 
 
 def _initial_state(variant: Variant) -> dict[str, float]:
@@ -124,9 +145,9 @@ def run_variant(variant: Variant, dataset: Dataset, runs_dir: Path, *, max_worke
     init = _initial_state(variant)
     with tempfile.TemporaryDirectory(prefix="o2m-self-spread-") as tmp:
         osim = models.fetch_model(MOBL_MODEL, progress=False)
-        if variant.force_scale != 1.0:
+        if variant.muscle_edits:
             osim = Path(tmp) / osim.name
-            scale_muscle_forces(models.fetch_model(MOBL_MODEL, progress=False), osim, variant.force_scale)
+            edit_muscles(models.fetch_model(MOBL_MODEL, progress=False), osim, variant.muscle_edits)
         # threads suffice: every run is its own OpenSim process
         with cf.ThreadPoolExecutor(max_workers=max_workers) as pool:
             futures = {pool.submit(run_isolated, osim, dataset.times, dataset.activations.values[i], muscles,
@@ -181,7 +202,7 @@ def spread_table(dataset: Dataset, variants: tuple[Variant, ...], runs: dict[str
     return {"variants": np.array([v.name for v in variants]),
             "descriptions": np.array([v.description for v in variants]),
             "accuracy": np.array([v.settings.accuracy for v in variants]),
-            "force_scale": np.array([v.force_scale for v in variants]),
+            "muscle_edits": np.array([json.dumps(v.muscle_edits) for v in variants]),
             "initial_offsets": np.array([json.dumps(dict(v.initial_offsets)) for v in variants]),
             "sets": np.array(sets), "dofs": np.array(dofs), "spread": spread, "spread_max": spread_max,
             "trajectories": traj, "status": status.astype(str), "wall_time": wall}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from o2m.paper.self_spread import compare_runs, scale_muscle_forces
 from tests.helpers import model_file
@@ -37,3 +38,21 @@ def test_scaled_model_loads_in_opensim_with_stronger_muscles(tmp_path):
     for i in range(muscles_after.getSize()):
         f0 = muscles_before.get(i).getMaxIsometricForce()
         assert muscles_after.get(i).getMaxIsometricForce() == np.float64(f0 * 1.001)
+
+
+def test_edit_one_muscle_leaves_the_others(tmp_path):
+    """An offset on one muscle's optimal fibre length changes that muscle only; a wrong name raises."""
+    from o2m.osim.runtime import load_model
+    from o2m.paper.self_spread import edit_muscles
+
+    src = model_file("opensim-models/Models/Arm26/arm26.osim")
+    dst = tmp_path / "arm26_longer_fibre.osim"
+    assert edit_muscles(src, dst, (("BRA", "optimal_fiber_length", 1.0, 1e-4),)) == 1
+    before, _ = load_model(src)
+    after, _ = load_model(dst)
+    for i in range(after.getMuscles().getSize()):
+        m0, m1 = before.getMuscles().get(i), after.getMuscles().get(i)
+        added = 1e-4 if m1.getName() == "BRA" else 0.0
+        assert m1.getOptimalFiberLength() - m0.getOptimalFiberLength() == pytest.approx(added, abs=1e-15)
+    with pytest.raises(KeyError):
+        edit_muscles(src, dst, (("NOPE", "optimal_fiber_length", 1.0, 1e-4),))
