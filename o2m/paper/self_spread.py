@@ -19,13 +19,17 @@ property, factor, added], ...]``; ``initial_offsets`` (V,) JSON ``{state name: a
 ``spread`` and ``spread_max`` (V, S, D) rad, mean and max absolute difference from the stored
 trajectory over the 1 s (NaN where a variant was not run on a set or failed); ``trajectories``
 (V, S, T, D) float32 rad; ``status`` (V, S); ``wall_time`` (V, S) s; ``mujoco_fitted`` (S, D)
-rad, the fitted MuJoCo model's error on the same sets; ``meta`` JSON (model, sha256, command).
+rad, the fitted MuJoCo model's error on the same sets (``results/results.npz``); with
+``--mujoco-model`` (default the fitted model of ``python -m o2m paper``), ``mujoco_variants`` (V',)
+and ``mujoco_spread`` (V', S, D) rad, that model's own spread under the same changes
+(:func:`mujoco_self_spread`); ``meta`` JSON (model, sha256, settings of every variant, command).
 """
 
 from __future__ import annotations
 
 import argparse
 import concurrent.futures as cf
+import copy
 import json
 import sys
 import tempfile
@@ -33,6 +37,7 @@ import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 from lxml import etree
 
@@ -40,12 +45,14 @@ from o2m import models
 from o2m.osim.simulate import IntegratorSettings, OpenSimRun, read_initial_state, run_isolated
 from o2m.paper.dataset import MOBL_INITIAL_STATE, MOBL_MODEL, Dataset, load_dataset
 
-__all__ = ["VARIANTS", "Variant", "compare_runs", "edit_muscles", "load_spread", "mujoco_errors", "print_table",
-           "run_variant", "scale_muscle_forces", "spread_table", "write_spread"]
+__all__ = ["VARIANTS", "Variant", "compare_runs", "edit_muscles", "load_spread", "mujoco_errors", "mujoco_self_spread",
+           "print_table", "run_variant", "scale_muscle_forces", "spread_table", "write_spread"]
 
 DATA_DIR = Path("data/mobl_arms")
 #: The test sets with MuJoCo's largest elbow errors (the floor section of docs/paper.md).
 FIRST = (30, 62, 54)
+FITTED_XML = "out/paper/MoBL_ARMS_model_for_testing_opensim_no_wrap_fitted.xml"
+"""The fitted MuJoCo model ``python -m o2m paper`` writes."""
 DOFS = ("elv_angle", "shoulder_elv", "shoulder_rot", "elbow_flexion", "pro_sup")
 
 
@@ -217,6 +224,53 @@ def mujoco_errors(data_dir: Path, sets: np.ndarray, dofs: tuple[str, ...] = DOFS
         return z[key][np.ix_(rows, cols)]
 
 
+def _perturbed_initial_states(exp, model, sets: list[int], offsets: dict[str, float]) -> np.ndarray:
+    """MuJoCo initial states (B, nstate) of ``sets`` as :func:`o2m.paper.load_experiment` builds
+    them, with ``offsets`` (rad) added to the named coordinates."""
+    from o2m.mj.simulate import initial_state
+
+    ds = exp.dataset
+    states = []
+    for i in sets:
+        coords = dict(zip(ds.coordinate_names, ds.coordinates[i, 0], strict=True))
+        for name, offset in offsets.items():
+            coords[name] += offset
+        states.append(initial_state(model, coords, speeds=dict(zip(ds.coordinate_names, ds.speeds[i, 0], strict=True)),
+                                    activations=dict(zip(ds.muscle_names, ds.opensim_activations[i, 0], strict=True))))
+    return np.stack(states)
+
+
+def mujoco_self_spread(exp, model, sets: list[int], variants: tuple[Variant, ...]) -> dict[str, np.ndarray]:
+    """The same question asked of a MuJoCo model: its own spread under the variants' changes.
+
+    ``exp`` is :func:`o2m.paper.load_experiment`'s, ``model`` e.g. the fitted model. A variant's
+    ``max_isometric_force`` factor on every muscle scales each muscle actuator's force (gain and
+    bias parameter 2, so MuJoCo's active and passive muscle force; the fitted tendon springs are
+    left as they are); its ``initial_offsets`` move the initial coordinates; variants with other
+    changes (integrator, one muscle's fibre) are skipped. Returns ``mujoco_variants`` (V',) and
+    ``mujoco_spread`` (V', S, D) rad: mean absolute difference from the unchanged model's run.
+    """
+    from o2m.mj.simulate import rollout
+
+    base = rollout(model, exp.init[sets], exp.controls[sets], joint_names=exp.dofs).coordinates
+    names, spreads = [], []
+    for v in variants:
+        scale = [f for m, prop, f, added in v.muscle_edits if m == "*" and prop == "max_isometric_force" and not added]
+        if v.settings != IntegratorSettings() or len(scale) != len(v.muscle_edits) or not (scale or v.initial_offsets):
+            continue
+        changed = copy.deepcopy(model)
+        if scale:
+            muscles = changed.actuator_gaintype == mujoco.mjtGain.mjGAIN_MUSCLE
+            changed.actuator_gainprm[muscles, 2] *= scale[0]
+            changed.actuator_biasprm[muscles, 2] *= scale[0]
+        init = _perturbed_initial_states(exp, changed, sets, dict(v.initial_offsets)) if v.initial_offsets else \
+            exp.init[sets]
+        run = rollout(changed, init, exp.controls[sets], joint_names=exp.dofs).coordinates
+        names.append(v.name)
+        spreads.append(compare_runs(base, run)[0])
+    return {"mujoco_variants": np.array(names), "mujoco_spread": np.array(spreads)}
+
+
 def write_spread(path: Path, table: dict[str, np.ndarray], meta: dict) -> None:
     """Write :func:`spread_table`'s arrays and ``meta`` (JSON) to ``path`` (``.npz``)."""
     np.savez_compressed(path, **table, meta=json.dumps(meta))
@@ -230,35 +284,36 @@ def load_spread(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
+def _row(label: str, n: int, values: np.ndarray) -> str:
+    return f"| {label} | {n} | " + " | ".join(f"{x:.4f}" for x in values) + f" | {values.mean():.4f} |"
+
+
 def print_table(table: dict[str, np.ndarray], large: float = 0.02) -> None:
-    """Per joint: MuJoCo's fitted error and each variant's spread, mean over the sets each ran on;
-    then the sets where a variant's elbow spread exceeds ``large`` rad."""
+    """Per joint: MuJoCo's fitted error, each OpenSim variant's spread (mean over the sets it ran
+    on) and the fitted MuJoCo model's own spread; then per set the elbow (rad), ``*`` where an
+    OpenSim variant's elbow spread exceeds ``large`` rad."""
     dofs, mj = list(table["dofs"]), table["mujoco_fitted"]
     print("| mean over test sets, rad | sets | " + " | ".join(dofs) + " | mean |")
     print("|---|---|" + "---|" * (len(dofs) + 1))
+    print(_row("MuJoCo fitted vs OpenSim", len(mj), mj.mean(axis=0)))
     for v in range(len(table["variants"])):
         ran = np.isfinite(table["spread"][v]).all(axis=1)
-        if not ran.any():
-            continue
-        row = table["spread"][v][ran].mean(axis=0)
-        print(f"| OpenSim {table['descriptions'][v]} | {ran.sum()} | " + " | ".join(f"{x:.4f}" for x in row)
-              + f" | {row.mean():.4f} |")
-        if ran.sum() < len(ran):
-            mrow = mj[ran].mean(axis=0)
-            print(f"| ... MuJoCo fitted on those {ran.sum()} sets | {ran.sum()} | "
-                  + " | ".join(f"{x:.4f}" for x in mrow) + f" | {mrow.mean():.4f} |")
-    mrow = mj.mean(axis=0)
-    print(f"| MuJoCo fitted | {len(mj)} | " + " | ".join(f"{x:.4f}" for x in mrow) + f" | {mrow.mean():.4f} |")
+        if ran.any():
+            print(_row(f"OpenSim, {table['descriptions'][v]}", ran.sum(), table["spread"][v][ran].mean(axis=0)))
+        if 0 < ran.sum() < len(ran):
+            print(_row(f"... MuJoCo fitted vs OpenSim on those {ran.sum()} sets", ran.sum(), mj[ran].mean(axis=0)))
+    for name, spread in zip(table.get("mujoco_variants", []), table.get("mujoco_spread", []), strict=True):
+        print(_row(f"MuJoCo fitted against itself, {name}", len(spread), spread.mean(axis=0)))
     elbow = dofs.index("elbow_flexion")
-    print("\nper set, elbow_flexion (rad): MuJoCo fitted | " + " | ".join(table["variants"]))
+    print("\nelbow_flexion per set, rad | MuJoCo fitted | " + " | ".join(table["variants"]))
     for s, i in enumerate(table["sets"]):
         cells = " | ".join(f"{table['spread'][v, s, elbow]:.4f}" for v in range(len(table["variants"])))
         flag = " *" if np.nanmax(table["spread"][:, s, elbow], initial=0) > large else ""
-        print(f"set {i:3d}: {mj[s, elbow]:.4f} | {cells}{flag}")
+        print(f"set {i:3d} | {mj[s, elbow]:.4f} | {cells}{flag}")
 
 
 def _rank_agreement(table: dict[str, np.ndarray]) -> None:
-    """Spearman rank of each variant's per-set mean spread with MuJoCo's per-set fitted error."""
+    """Spearman rank of each variant's per-set spread with MuJoCo's per-set fitted error."""
     from scipy.stats import spearmanr
 
     mj = table["mujoco_fitted"]
@@ -269,7 +324,33 @@ def _rank_agreement(table: dict[str, np.ndarray]) -> None:
             continue
         rho_all = spearmanr(table["spread"][v][ran].mean(axis=1), mj[ran].mean(axis=1))[0]
         rho_elbow = spearmanr(table["spread"][v][ran, elbow], mj[ran, elbow])[0]
-        print(f"{name}: Spearman with MuJoCo's per-set error: mean over joints {rho_all:.2f}, elbow {rho_elbow:.2f}")
+        print(f"{name}: Spearman with MuJoCo's per-set error over {ran.sum()} sets: "
+              f"mean over joints {rho_all:.2f}, elbow {rho_elbow:.2f}")
+
+
+def _collect_runs(args: argparse.Namespace, dataset: Dataset, chosen: tuple[Variant, ...]
+                  ) -> dict[str, dict[int, OpenSimRun]]:
+    """Run the chosen variants, or with ``--no-run`` read the runs kept under ``--runs``."""
+    runs = {}
+    for variant in chosen:
+        if args.no_run:
+            folder = args.runs / variant.name
+            runs[variant.name] = {int(p.stem[4:]): OpenSimRun.from_npz(p) for p in sorted(folder.glob("set_*.npz"))}
+        else:
+            runs[variant.name] = run_variant(variant, dataset, args.runs, max_workers=args.max_workers,
+                                             timeout=args.timeout)
+    return runs
+
+
+def _mujoco_side(args: argparse.Namespace, sets: list[int], chosen: tuple[Variant, ...]) -> dict[str, np.ndarray]:
+    """:func:`mujoco_self_spread` of ``--mujoco-model`` (nothing when the file is missing)."""
+    from o2m.paper.pipeline import load_experiment
+
+    if not args.mujoco_model.exists():
+        print(f"{args.mujoco_model} not found: no MuJoCo self-spread (run `python -m o2m paper` first)")
+        return {}
+    exp = load_experiment(args.data, args.mujoco_model.parent)
+    return mujoco_self_spread(exp, mujoco.MjModel.from_xml_path(str(args.mujoco_model)), sets, chosen)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -280,23 +361,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-workers", type=int, default=1)
     parser.add_argument("--timeout", type=float, default=1200.0, help="wall-clock seconds per run")
     parser.add_argument("--no-run", action="store_true", help="only tabulate the runs already kept")
+    parser.add_argument("--mujoco-model", type=Path, default=Path(FITTED_XML), help="the fitted MJCF")
     args = parser.parse_args(argv)
     dataset = load_dataset(args.data)
     chosen = tuple(v for v in VARIANTS if v.name in args.variants)
-    runs = {}
-    for variant in chosen:
-        if args.no_run:
-            folder = args.runs / variant.name
-            runs[variant.name] = {int(p.stem[4:]): OpenSimRun.from_npz(p) for p in sorted(folder.glob("set_*.npz"))}
-        else:
-            runs[variant.name] = run_variant(variant, dataset, args.runs, max_workers=args.max_workers,
-                                             timeout=args.timeout)
-    table = spread_table(dataset, chosen, runs)
+    table = spread_table(dataset, chosen, _collect_runs(args, dataset, chosen))
     table["mujoco_fitted"] = mujoco_errors(args.data, table["sets"])
+    table.update(_mujoco_side(args, list(dataset.test), chosen))
     osim = models.fetch_model(MOBL_MODEL, progress=False)
     meta = {"model": models.bundled_model(MOBL_MODEL).osim, "model_sha256": models.sha256_of(osim),
             "reference": dataset.meta.get("integrator"), "initial_state": MOBL_INITIAL_STATE,
             "variants": [{**replace(v, settings=None).__dict__, "settings": v.settings.__dict__} for v in chosen],
+            "mujoco_model": str(args.mujoco_model),
             "command": "python -m o2m.paper.self_spread " + " ".join(sys.argv[1:] if argv is None else argv)}
     write_spread(args.data / "self_spread.npz", table, meta)
     print_table(table)
