@@ -285,31 +285,36 @@ def load_spread(path: Path) -> dict[str, np.ndarray]:
 
 
 def _row(label: str, n: int, values: np.ndarray) -> str:
-    return f"| {label} | {n} | " + " | ".join(f"{x:.4f}" for x in values) + f" | {values.mean():.4f} |"
+    """A table row in mrad: the values per joint and their mean."""
+    return f"| {label} | {n} | " + " | ".join(f"{1e3 * x:.2f}" for x in values) + f" | {1e3 * values.mean():.2f} |"
 
 
-def print_table(table: dict[str, np.ndarray], large: float = 0.02) -> None:
-    """Per joint: MuJoCo's fitted error, each OpenSim variant's spread (mean over the sets it ran
-    on) and the fitted MuJoCo model's own spread; then per set the elbow (rad), ``*`` where an
-    OpenSim variant's elbow spread exceeds ``large`` rad."""
+def print_table(table: dict[str, np.ndarray], large: float = 0.002) -> None:
+    """Per joint (mrad): MuJoCo's fitted error, each OpenSim variant's spread and largest
+    difference (mean and max over the sets it ran on), the fitted MuJoCo model's own spread;
+    then per set the elbow, ``*`` where an OpenSim variant's largest elbow difference exceeds
+    ``large`` rad."""
     dofs, mj = list(table["dofs"]), table["mujoco_fitted"]
-    print("| mean over test sets, rad | sets | " + " | ".join(dofs) + " | mean |")
+    print("| mean over test sets, mrad | sets | " + " | ".join(dofs) + " | mean |")
     print("|---|---|" + "---|" * (len(dofs) + 1))
     print(_row("MuJoCo fitted vs OpenSim", len(mj), mj.mean(axis=0)))
     for v in range(len(table["variants"])):
         ran = np.isfinite(table["spread"][v]).all(axis=1)
         if ran.any():
             print(_row(f"OpenSim, {table['descriptions'][v]}", ran.sum(), table["spread"][v][ran].mean(axis=0)))
+            print(_row("... its largest difference, any set", ran.sum(), table["spread_max"][v][ran].max(axis=0)))
         if 0 < ran.sum() < len(ran):
             print(_row(f"... MuJoCo fitted vs OpenSim on those {ran.sum()} sets", ran.sum(), mj[ran].mean(axis=0)))
     for name, spread in zip(table.get("mujoco_variants", []), table.get("mujoco_spread", []), strict=True):
         print(_row(f"MuJoCo fitted against itself, {name}", len(spread), spread.mean(axis=0)))
     elbow = dofs.index("elbow_flexion")
-    print("\nelbow_flexion per set, rad | MuJoCo fitted | " + " | ".join(table["variants"]))
+    print("\nelbow_flexion per set, mrad: MuJoCo fitted error | mean (max) difference of "
+          + " | ".join(table["variants"]))
     for s, i in enumerate(table["sets"]):
-        cells = " | ".join(f"{table['spread'][v, s, elbow]:.4f}" for v in range(len(table["variants"])))
-        flag = " *" if np.nanmax(table["spread"][:, s, elbow], initial=0) > large else ""
-        print(f"set {i:3d} | {mj[s, elbow]:.4f} | {cells}{flag}")
+        cells = " | ".join(f"{1e3 * table['spread'][v, s, elbow]:.2f} ({1e3 * table['spread_max'][v, s, elbow]:.2f})"
+                           for v in range(len(table["variants"])))
+        flag = " *" if np.nanmax(table["spread_max"][:, s, elbow], initial=0) > large else ""
+        print(f"set {i:3d} | {1e3 * mj[s, elbow]:.1f} | {cells}{flag}")
 
 
 def _rank_agreement(table: dict[str, np.ndarray]) -> None:
