@@ -7,8 +7,9 @@ few poses the split costs more than it gains (MoBL-ARMS's TMAJ: 27 % with TMAJ_L
 split), where it touches them together often it gains (INFSP: 2.5 % split, 22 % alone). So the
 tendon is built with every wrap OpenSim touches there, and each *variant* (a contiguous run of
 those wraps, with the via points between them; the others left out) is fitted to OpenSim's
-lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`); the variant with the smallest
-error over all its poses is kept (:func:`drop_from_spec` removes the rest from the model).
+lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`); of the variants whose worst
+length error is near the smallest, the one with the smallest objective over all its poses is kept
+(:func:`best_variant`; :func:`drop_from_spec` removes the rest from the model).
 """
 
 from __future__ import annotations
@@ -24,6 +25,12 @@ from lxml import etree
 #: Most variants fitted per tendon (the product of its split segments' runs; beyond it one
 #: segment varies at a time, the others keeping every wrap).
 MAX_VARIANTS = 8
+
+#: A variant whose worst length error exceeds the smallest among its tendon's variants by more
+#: than this factor plus :data:`VARIANT_PCT_MARGIN` (percentage points) is not kept, whatever its
+#: objective (MoBL-ARMS's PECM1: PEC1hh alone had the smallest objective and a 40 % worst length).
+VARIANT_PCT_FACTOR = 1.2
+VARIANT_PCT_MARGIN = 1.0
 
 
 @dataclass(frozen=True)
@@ -96,6 +103,29 @@ def xml_without(xml: str, tendon: str, dropped: Iterable[str]) -> str:
     return etree.tostring(root, encoding="unicode")
 
 
+def _overall(fit: Any) -> float:
+    """A fit's objective over its fitting and check poses together (mm²)."""
+    a, c = fit.after, fit.check_after
+    return (a["objective"] * a["poses"] + c["objective"] * c["poses"]) / max(a["poses"] + c["poses"], 1)
+
+
+def _worst_pct(fit: Any) -> float:
+    """A fit's worst length error over its fitting and check poses (% of OpenSim's length)."""
+    return max(fit.after["len_max_pct"], fit.check_after["len_max_pct"])
+
+
+def best_variant(fits: list[Any]) -> Any:
+    """Of one tendon's fitted variants (:class:`o2m.convert.wrapfit.PathFit` s), the one with the
+    smallest objective over all poses among those whose worst length error is near the smallest
+    (:data:`VARIANT_PCT_FACTOR`); it records every variant's errors."""
+    floor = min(_worst_pct(f) for f in fits)
+    eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
+    best = min(eligible, key=_overall)
+    if len(fits) > 1:
+        best.variants = {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
+    return best
+
+
 #: MjsTendon attributes that are no setting of its own.
 _NOT_COPIED = {"path", "id", "signature", "name", "compiler"}
 
@@ -154,4 +184,5 @@ def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tup
     return tendon.name, settings, path
 
 
-__all__ = ["MAX_VARIANTS", "PathVariant", "drop_from_spec", "split_variants", "xml_without"]
+__all__ = ["MAX_VARIANTS", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant", "drop_from_spec",
+           "split_variants", "xml_without"]

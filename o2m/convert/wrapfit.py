@@ -50,6 +50,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
+from o2m.convert.wrap_choice import best_variant, drop_from_spec, xml_without
 from o2m.osim import runtime
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
@@ -524,7 +525,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     results: dict[str, list[PathFit]] = {}
     for res in fitted:
         results.setdefault(res.tendon, []).append(res)
-    return [_best_variant(results[t]) for t in by_tendon if t in results]
+    return [best_variant(results[t]) for t in by_tendon if t in results]
 
 
 def tendon_seed(seed: int, tendon: str) -> int:
@@ -547,48 +548,15 @@ def _task(tendon: str, xml: str, geoms: list[Any], tg: dict[str, Any], variant: 
             pts = np.array(pts)
             pts = pts @ OSIM_TO_MJ.T if g.body == "ground" else pts  # MuJoCo's ground is Z-up
         contacts.append(pts if pts is not None and len(pts) else None)
-    from o2m.convert.wrap_choice import xml_without
-
     return _Task(tendon, xml_without(reduced_xml(xml, tendon), tendon, dropped), [g.geom for g in geoms],
                  [g.sidesite for g in geoms], [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
                  n_fit, tg["coordinates"], seed, budget, contacts, [v for v in vias if v not in dropped],
                  variant.label if variant is not None else "", sorted(dropped), starts)
 
 
-def _overall(fit: PathFit) -> float:
-    """A fit's objective over its fitting and check poses together (mm²)."""
-    a, c = fit.after, fit.check_after
-    return (a["objective"] * a["poses"] + c["objective"] * c["poses"]) / max(a["poses"] + c["poses"], 1)
-
-
-def _worst_pct(fit: PathFit) -> float:
-    """A fit's worst length error over its fitting and check poses (% of OpenSim's length)."""
-    return max(fit.after["len_max_pct"], fit.check_after["len_max_pct"])
-
-
-#: A variant whose worst length error exceeds the smallest among its tendon's variants by more
-#: than this factor plus :data:`VARIANT_PCT_MARGIN` (percentage points) is not kept, whatever its
-#: objective (MoBL-ARMS's PECM1: PEC1hh alone had the smallest objective and a 40 % worst length).
-VARIANT_PCT_FACTOR = 1.2
-VARIANT_PCT_MARGIN = 1.0
-
-
-def _best_variant(fits: list[PathFit]) -> PathFit:
-    """Of one tendon's fitted variants, the one with the smallest objective over all poses among
-    those whose worst length error is near the smallest (:data:`VARIANT_PCT_FACTOR`)."""
-    floor = min(_worst_pct(f) for f in fits)
-    eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
-    best = min(eligible, key=_overall)
-    if len(fits) > 1:
-        best.variants = {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
-    return best
-
-
 def apply_fits(spec: mujoco.MjSpec, fits: Sequence[PathFit], site_exact: dict, geom_exact: dict) -> None:
     """Write accepted fits into ``spec`` and into the exact-value tables the MJCF writer uses, and
     leave out of it the sites and geoms each tendon's kept variant drops."""
-    from o2m.convert.wrap_choice import drop_from_spec
-
     drop_from_spec(spec, {f.tendon: f.dropped for f in fits})
     for f in fits:
         if not f.accepted:

@@ -357,6 +357,23 @@ def test_split_variants_are_the_contiguous_runs_of_wraps():
     assert split_variants([WrapSplit("m", ("P1", "P2"), ["a"])], geoms) == {}
 
 
+def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_worst_length():
+    """A variant with the smallest objective but a worst length far above another's (MoBL-ARMS's
+    PECM1: PEC1hh alone 398 mm², 40 %; PEC12hum alone 447 mm², 26.7 %) is not kept."""
+    from types import SimpleNamespace
+
+    from o2m.convert.wrap_choice import best_variant
+
+    def fit(label, objective, pct):
+        errors = {"objective": objective, "len_max_pct": pct, "poses": 10}
+        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={})
+
+    fits = [fit("both", 492.0, 35.4), fit("PEC12hum", 447.0, 26.7), fit("PEC1hh", 398.0, 40.0)]
+    best = best_variant(fits)
+    assert best.variant == "PEC12hum" and set(best.variants) == {"both", "PEC12hum", "PEC1hh"}
+    assert best_variant([fit("a", 10.0, 5.0), fit("b", 9.0, 5.9)]).variant == "b"  # 5.9 <= 1.2 * 5 + 1
+
+
 def test_dropping_wraps_from_a_spec_changes_nothing_else(tmp_path):
     """drop_from_spec re-adds the tendons (MjSpec cannot remove one path element): with nothing to
     drop the MJCF is unchanged; dropping the via point and the second cylinder leaves the path
