@@ -32,6 +32,7 @@ from o2m.convert.records import Approximation
 from o2m.convert.report import ConversionReport
 from o2m.convert.tendons import add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry
+from o2m.convert.wrap_choice import split_variants
 from o2m.convert.wrap_split import add_wrap_splits, narrow_wrap_ranges
 from o2m.convert.wrapfit import apply_fits, fit_paths
 from o2m.convert.wraps import restore_geom_precision
@@ -155,7 +156,8 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
                 designed.setdefault(v.path, []).append(v)
             fits = fit_paths(osim, xml0, tendons.path_geoms, workers=options.workers, held=tendons.held,
                              quick=options.quick,
-                             designed=designed, vias={r.path: r.sites for r in splits})
+                             designed=designed, vias={r.path: r.sites for r in splits},
+                             variants=split_variants(splits, tendons.path_geoms))
             apply_fits(spec, fits, builder.exact, tendons.exact)
             model = spec.compile()
             fit_seconds = time.perf_counter() - t_fit

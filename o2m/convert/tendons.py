@@ -114,7 +114,7 @@ class TendonBuilder:
                 on_segment[sseg] = conditional_geom(self.ctx, self.carriers, path, item[1], roles)
                 continue
             wrap, seg = item[1], item[2]
-            geom = self.wrap_geoms.geom(wrap)
+            geom = self.wrap_geoms.geom(wrap, sites_ground[seg], sites_ground[seg + 1])
             if geom is None:
                 continue
             side = self.wrap_geoms.side_site(wrap, geom, sites_ground[seg], sites_ground[seg + 1])

@@ -17,7 +17,9 @@ own (its ``range`` narrowed to it, later wraps' ranges shifted).
   the two wraps' centres, at the reference pose, on the first wrap's body.
 
 A via point forces the path through it also where OpenSim's path leaves one of the wraps (then
-straight) alone; the wrap fit (:mod:`o2m.convert.wrapfit`) fits the geoms around it, and each
+straight) alone; the wrap fit (:mod:`o2m.convert.wrapfit`) fits the geoms around it, fits each
+contiguous run of the wraps alone too and keeps the one nearest OpenSim
+(:mod:`o2m.convert.wrap_choice`; without the fit every wrap touched is kept), and each
 split is recorded with the via points' scatter (how far OpenSim's path runs from them where both
 wraps act).
 """
@@ -190,19 +192,13 @@ def _via(os_paths: _OpenSimPaths, path: Path, seg: int, first: WrapObject, secon
 
 
 def _keep(order: list[str], seen: list[list[str]]) -> list[str]:
-    """The wraps (in path order) worth a segment of their own: those OpenSim touches at some
-    sampled pose, and of two neighbours touched together at fewer than half the poses where
-    either is (alternatives more than a chain: a via point between them would bend the path
-    where OpenSim keeps it straight; MoBL-ARMS's TMAJ, split at 4 of 22: 27 -> 63 %) the one
-    touched more often."""
-    touched = {n: sum(n in s for s in seen) for n in order}
-    kept = [n for n in order if touched[n] > 0]
-    while True:
-        pair = next(((x, y) for x, y in zip(kept, kept[1:], strict=False)
-                     if 2 * sum(x in s and y in s for s in seen) < sum(x in s or y in s for s in seen)), None)
-        if pair is None:
-            return kept
-        kept.remove(pair[0] if touched[pair[0]] < touched[pair[1]] else pair[1])
+    """The wraps (in path order) given a segment of their own: those OpenSim touches at some
+    sampled pose. Which of them the tendon keeps is then chosen by measured error
+    (:mod:`o2m.convert.wrap_choice`): a via point between two wraps OpenSim touches together at
+    few poses bends the path where OpenSim keeps it straight (MoBL-ARMS's TMAJ, together at 4 of
+    22: 27 % alone, 63 % split), while one between two it touches together often pays (INFSP:
+    2.5 % split, 22 % alone)."""
+    return [n for n in order if any(n in s for s in seen)]
 
 
 def split_path(os_paths: _OpenSimPaths, builder: MjcfBuilder, path: Path, seg: int, names: list[str],

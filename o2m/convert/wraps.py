@@ -2,7 +2,8 @@
 
 Wrap objects become wrap geoms, one per path that uses them (so :mod:`o2m.convert.wrapfit` can fit
 each path's own): spheres and cylinders as they are; an ellipsoid as the sphere or cylinder
-nearest to it; a torus is left out. Each is placed on the path segment (within the wrap's
+nearest to it; a torus as the cylinder OpenSim wraps over at the reference pose
+(:func:`torus_cylinder`). Each is placed on the path segment (within the wrap's
 OpenSim range) that passes closest to it at the reference pose, with a side site on the side
 that segment passes or that the quadrant names (MuJoCo 4.0: the tendon wraps the way the
 straight path through the side site goes). Sizes are metres; on ground, OpenSim's Y-up frame is
@@ -58,16 +59,25 @@ class WrapGeoms:
         #: geom name -> (its frame in its OpenSim body, MuJoCo kind, radius)
         self.geom_frames: dict[str, tuple[Transform, str, float]] = {}
 
-    def geom(self, wrap: WrapObject) -> str | None:
+    def geom(self, wrap: WrapObject, a: np.ndarray | None = None, b: np.ndarray | None = None) -> str | None:
         """A new MuJoCo geom for a wrap object (each path gets its own, so fitting one path's wrap
-        leaves the others alone), or None when it has no MuJoCo twin (a torus)."""
+        leaves the others alone), or None when it has no MuJoCo twin (a torus whose path segment
+        ``a``-``b``, ground frame at the reference pose, is not given)."""
         if self.geoms.get(wrap.name, "") is None:
             return None
         first_use = wrap.name not in self.geoms
         self._check_size(wrap)
         x = self.ctx.in_world(wrap.body, wrap.frame)
         kind, size, extra_rot = wrap.kind, None, np.eye(3)
-        if kind == "sphere":
+        frame = wrap.frame
+        if kind == "torus":
+            if a is None or b is None:
+                self.b.result.notes.append(f"WrapTorus '{wrap.name}' is not converted (no path segment to place it on)")
+                return None
+            frame = wrap.frame @ self._torus_cylinder(wrap, a, b, first_use)
+            x = self.ctx.in_world(wrap.body, frame)
+            kind, size = "cylinder", [wrap.inner_radius, wrap.inner_radius, 0]
+        elif kind == "sphere":
             size = [wrap.radius, 0, 0]
         elif kind == "cylinder":
             size = [wrap.radius, max(wrap.length, 1e-6) / 2, 0]
@@ -89,10 +99,6 @@ class WrapGeoms:
             if first_use:
                 self.b.result.approximations.append(Approximation("WrapEllipsoid", wrap.name, what, err, "m",
                                                                   "largest semi-axis difference"))
-        else:
-            self.b.result.notes.append(f"WrapTorus '{wrap.name}' is not converted (MuJoCo cannot wrap a torus)")
-            self.geoms[wrap.name] = None
-            return None
         x = x @ Transform(extra_rot)
         name = self.ctx.unique(f"wrap_{wrap.name}")
         gtype = mujoco.mjtGeom.mjGEOM_SPHERE if kind == "sphere" else mujoco.mjtGeom.mjGEOM_CYLINDER
@@ -103,8 +109,21 @@ class WrapGeoms:
                                           "size": np.asarray(size[:2] if kind == "cylinder" else size[:1],
                                                              dtype=float)}
         self.geoms[wrap.name] = name
-        self.geom_frames[name] = (wrap.frame @ Transform(extra_rot), kind, float(size[0]))
+        self.geom_frames[name] = (frame @ Transform(extra_rot), kind, float(size[0]))
         return name
+
+    def _torus_cylinder(self, wrap: WrapObject, a: np.ndarray, b: np.ndarray, first_use: bool) -> Transform:
+        """The frame (in the torus's) of the cylinder standing for torus ``wrap`` on the segment
+        ``a``-``b`` (ground, reference pose), recorded as an approximation on first use."""
+        to_torus = (self.b.ground_frames[wrap.body] @ wrap.frame).inverse()
+        if first_use:
+            self.b.result.approximations.append(Approximation(
+                "WrapTorus", wrap.name, f"torus (tube radius {wrap.inner_radius:.4g} m, ring radius "
+                f"{wrap.outer_radius:.4g} m) wrapped as the cylinder OpenSim wraps over at the reference pose (of "
+                "the tube's radius, on the ring where the path passes nearest it, the path on its side toward the "
+                "torus axis); OpenSim moves it with the path, the wrap fit places it", wrap.inner_radius, "m",
+                "the cylinder's radius"))
+        return torus_cylinder(to_torus.apply(a), to_torus.apply(b), wrap.outer_radius)
 
     def _check_size(self, wrap: WrapObject) -> None:
         """Raise an error naming the wrap object when a size its MuJoCo geom takes is not positive."""
@@ -158,9 +177,11 @@ class WrapGeoms:
         wrap a path clearing the geom on its far side, and always round the side site's side (a
         pendulum over a sphere: 75 mm too long where the path clears it below,
         tests/convert/test_wrapping.py)."""
+        frame, kind, radius = self.geom_frames[geom]
+        if wrap.kind == "torus":  # OpenSim wraps its cylinder on its +x side, toward the torus axis
+            return self._add_side_site(wrap, geom, frame, np.array([radius * SIDE_SITE_DISTANCE, 0.0, 0.0]))
         if wrap.quadrant in ("all", ""):
             return ""
-        frame, kind, radius = self.geom_frames[geom]
         x_ground = self.b.ground_frames[wrap.body] @ frame
         local_a, local_b = x_ground.inverse().apply(a), x_ground.inverse().apply(b)
         seg = local_b - local_a
@@ -179,11 +200,31 @@ class WrapGeoms:
         local = direction * radius * SIDE_SITE_DISTANCE
         if kind == "cylinder":
             local[2] = closest[2]
+        return self._add_side_site(wrap, geom, frame, local)
+
+    def _add_side_site(self, wrap: WrapObject, geom: str, frame: Transform, local: np.ndarray) -> str:
+        """A side site of ``geom`` at ``local`` in its ``frame`` (in ``wrap``'s body)."""
         pos = self.ctx.in_world(wrap.body, frame).apply(local)
         name = self.ctx.unique(f"{geom}_side")
         self.b.bodies[wrap.body].add_site(name=name, pos=pos, size=[0.001, 0, 0], group=5)
         self.b.exact[("site", name)] = {"pos": pos}
         return name
+
+
+def torus_cylinder(a: np.ndarray, b: np.ndarray, ring_radius: float, samples: int = 2001) -> Transform:
+    """The frame, in a torus's frame (ring about its z axis), of the cylinder OpenSim's WrapTorus
+    wraps the line ``a``-``b`` (torus frame, m) over, as WrapTorus::wrapLine builds it: centred on
+    the ring (the circle of ``ring_radius`` in z = 0) at its point nearest the line, its x axis
+    from there toward the torus axis (OpenSim wraps it on its +x side), its z axis the ring's
+    tangent (x cross -z). (OpenSim searches the infinite line; the segment here, sampled.)"""
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    pts = a + t * (b - a)
+    dist = np.hypot(np.hypot(pts[:, 0], pts[:, 1]) - ring_radius, pts[:, 2])
+    nearest = pts[int(np.argmin(dist))]
+    radial = np.array([nearest[0], nearest[1], 0.0])
+    radial = radial / np.linalg.norm(radial) if np.linalg.norm(radial) > 1e-12 else np.array([1.0, 0.0, 0.0])
+    x, y = -radial, np.array([0.0, 0.0, -1.0])
+    return Transform(np.column_stack([x, y, np.cross(x, y)]), ring_radius * radial)
 
 
 def wrap_segments(wrap_range: tuple[int, int], n_points: int) -> tuple[int, int]:

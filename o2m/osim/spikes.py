@@ -15,13 +15,20 @@ import numpy as np
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL
 
-__all__ = ["DLDQ_CONSISTENCY", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "one_pose_spikes",
-           "opensim_spikes", "outlying_changes"]
+__all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DLDQ_CONSISTENCY", "OUTLIER", "SPIKE_LINEAR_STEP",
+           "SPIKE_STEP", "SPIKE_TOL", "band_suspects", "one_pose_spikes", "opensim_spikes", "outlying_changes"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
 SPIKE_LINEAR_STEP = 1e-3
 SPIKE_TOL = 1e-3
+#: Failure bands (see :func:`opensim_spikes`): wider coordinate steps (in units of the spike
+#: test's), the size of a band's departure and its neighbours' disagreement (fractions of the
+#: neighbours' mean length), and the error (fraction of OpenSim's length) a converted length must
+#: be off for the band test to run (it costs 4 OpenSim poses per coordinate).
+BAND_STEPS = (3.0, 10.0)
+BAND_FRACTION = 0.05
+BAND_GATE = 0.05
 #: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
 DLDQ_CONSISTENCY = 1e-3
 
@@ -46,8 +53,14 @@ def outlying_changes(d: np.ndarray, tol: float = OUTLIER) -> np.ndarray:
     return np.abs(d - around) > tol
 
 
+def band_suspects(converted: np.ndarray, opensim: np.ndarray) -> np.ndarray:
+    """Indices of the paths whose ``converted`` length (n,) is off ``opensim``'s (n,) by more
+    than :data:`BAND_GATE` of it: the only ones an OpenSim failure band can explain."""
+    return np.flatnonzero(np.abs(converted - opensim) > BAND_GATE * np.maximum(np.abs(opensim), 1e-12))
+
+
 def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
-                   lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+                   lengths: np.ndarray | None = None, banded: Sequence[int] = ()) -> dict[int, dict[str, Any]]:
     """The muscles (indices into ``pair.matched``) whose OpenSim length is an isolated spike at
     the pose of independent ``values``: for some independent coordinate, moving it by
     :data:`SPIKE_STEP` radians (:data:`SPIKE_LINEAR_STEP` m) either way gives two lengths that
@@ -58,7 +71,13 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
     of poses (Arm26's BIClong round BIClonghh: 86 mm longer for shoulder elevation in 0.515-0.518
     rad). Also flagged: a length more than :data:`SPIKE_TOL` beyond both neighbours even where
     they differ (a failure band at a step between two ways round: MoBL-ARMS's TMAJ, 2.42 m between
-    0.157 and 0.220 m). Returns muscle index -> {"coordinate", "length", "neighbours"} (m)."""
+    0.157 and 0.220 m). For the muscles ``banded`` (see :func:`band_suspects`) also a failure band
+    a few steps wide, which the one-step test misses where a neighbour is in it too (MoBL-ARMS's
+    TRIlong: 0.66 m for 0.33 m, its neighbours 0.05 rad away 0.35 and 1.48 m): at the wider steps
+    :data:`BAND_STEPS`, two neighbours that agree within :data:`BAND_FRACTION` of their length
+    while the length at the pose lies beyond both by more than that (no smooth path bends so far
+    within 0.1 rad, and a step between two ways round leaves the pose at one of them). Returns
+    muscle index -> {"coordinate", "step", "length", "neighbours"} (m; step in radians or metres)."""
     out: dict[int, dict[str, Any]] = {}
     if not len(muscles):
         return out
@@ -67,10 +86,8 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
     for c in pair.indep:
         name = c.getName()
         h = SPIKE_LINEAR_STEP if int(c.getMotionType()) == TRANSLATIONAL else SPIKE_STEP
-        try:
-            up = pair.os_lengths(pair.os_state({**values, name: values[name] + h}))
-            dn = pair.os_lengths(pair.os_state({**values, name: values[name] - h}))
-        except Exception:
+        up, dn = _neighbours(pair, values, name, h)
+        if up is None:
             continue
         for i in idx:
             if int(i) in out:
@@ -80,6 +97,32 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
             # (MoBL-ARMS's TMAJ: 2.42 m between neighbours of 0.157 and 0.220 m)
             beyond = base[i] - max(up[i], dn[i]) > SPIKE_TOL or min(up[i], dn[i]) - base[i] > SPIKE_TOL
             if isolated or beyond:
-                out[int(i)] = {"coordinate": name, "length": float(base[i]),
-                               "neighbours": [float(dn[i]), float(up[i])]}
+                out[int(i)] = _evidence(name, h, base[i], dn[i], up[i])
+    banded = [int(i) for i in banded if int(i) not in out]
+    for c in pair.indep if banded else []:
+        name = c.getName()
+        h0 = SPIKE_LINEAR_STEP if int(c.getMotionType()) == TRANSLATIONAL else SPIKE_STEP
+        for h in (h0 * k for k in BAND_STEPS):
+            up, dn = _neighbours(pair, values, name, h)
+            for i in banded if up is not None else []:
+                tol = BAND_FRACTION * 0.5 * (abs(up[i]) + abs(dn[i]))
+                beyond = max(base[i] - max(up[i], dn[i]), min(up[i], dn[i]) - base[i]) > tol
+                if i not in out and abs(up[i] - dn[i]) < tol and beyond:
+                    out[i] = _evidence(name, h, base[i], dn[i], up[i])
     return out
+
+
+def _neighbours(pair: ModelPair, values: Mapping[str, float], name: str,
+                h: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """OpenSim's lengths with coordinate ``name`` moved by ``+h`` and ``-h`` (None where it fails)."""
+    try:
+        up = pair.os_lengths(pair.os_state({**values, name: values[name] + h}))
+        dn = pair.os_lengths(pair.os_state({**values, name: values[name] - h}))
+    except Exception:
+        return None, None
+    return up, dn
+
+
+def _evidence(coordinate: str, step: float, length: float, down: float, up: float) -> dict[str, Any]:
+    return {"coordinate": coordinate, "step": float(step), "length": float(length),
+            "neighbours": [float(down), float(up)]}

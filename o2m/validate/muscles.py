@@ -35,7 +35,7 @@ import numpy as np
 from o2m.mj.tendons import FD_STEP, mujoco_moment_arms
 from o2m.osim.pair import ModelPair, is_actuator
 from o2m.osim.runtime import sample_bounds
-from o2m.osim.spikes import DLDQ_CONSISTENCY, SPIKE_TOL, opensim_spikes
+from o2m.osim.spikes import DLDQ_CONSISTENCY, SPIKE_TOL, band_suspects, opensim_spikes
 from o2m.validate.kinematics import jsonable, text_table
 from o2m.validate.sweeps import plot_moment_arms
 
@@ -347,7 +347,7 @@ def compare_muscles(
         valid = np.ones(nm, dtype=bool)
         suspects = np.flatnonzero(err > SPIKE_TOL)
         if suspects.size:  # only a sample whose error is over SPIKE_TOL can be an OpenSim spike
-            for i, info in opensim_spikes(pair, values, suspects, l_os).items():
+            for i, info in opensim_spikes(pair, values, suspects, l_os, band_suspects(l_mj, l_os)).items():
                 valid[i] = False
                 spikes.append({"muscle": names[i], "pose": k, **info})
         err = np.where(valid, err, 0.0)

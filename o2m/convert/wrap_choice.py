@@ -1,0 +1,189 @@
+"""Which wraps of a split segment MuJoCo keeps: chosen by measured error.
+
+:mod:`o2m.convert.wrap_split` splits a segment that several wraps share by via points, one wrap
+per sub-segment. A via point forces the path through it also where OpenSim's path touches only
+one of the wraps (then runs straight past the other); where OpenSim touches the two together at
+few poses the split costs more than it gains (MoBL-ARMS's TMAJ: 27 % with TMAJ_LAThum alone, 63 %
+split), where it touches them together often it gains (INFSP: 2.5 % split, 22 % alone). So the
+tendon is built with every wrap OpenSim touches there, and each *variant* (a contiguous run of
+those wraps, with the via points between them; the others left out) is fitted to OpenSim's
+lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`); of the variants whose worst
+length error is near the smallest, the one with the smallest objective over all its poses is kept
+(:func:`best_variant`; :func:`drop_from_spec` removes the rest from the model).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+from lxml import etree
+
+#: Most variants fitted per tendon (the product of its split segments' runs; beyond it one
+#: segment varies at a time, the others keeping every wrap).
+MAX_VARIANTS = 8
+
+#: A variant whose worst length error exceeds the smallest among its tendon's variants by more
+#: than this factor plus :data:`VARIANT_PCT_MARGIN` (percentage points) is not kept, whatever its
+#: objective (MoBL-ARMS's PECM1: PEC1hh alone had the smallest objective and a 40 % worst length;
+#: with a margin of 1 point Rajagopal2016's gaslat_l kept a wrap that left it 1.62 % off, not 0.52).
+VARIANT_PCT_FACTOR = 1.2
+VARIANT_PCT_MARGIN = 0.1
+
+
+@dataclass(frozen=True)
+class PathVariant:
+    """One choice of wraps for a tendon: ``label`` names the kept wraps per split segment
+    (OpenSim names), ``dropped`` the MuJoCo sites and geoms (side sites included) left out."""
+
+    label: str
+    dropped: frozenset[str]
+
+
+def _segment_runs(rec: Any, geoms: dict[str, tuple[str, str]]) -> list[tuple[str, frozenset[str]]]:
+    """The contiguous runs of the wraps of split ``rec`` (a :class:`~o2m.convert.wrap_split.WrapSplit`),
+    longest first: (label, MuJoCo names left out), given wrap name -> (geom, side site)."""
+    n = len(rec.wraps)
+    out = []
+    for size in range(n, 0, -1):
+        for i in range(n - size + 1):
+            j = i + size - 1
+            kept = rec.wraps[i:j + 1]
+            drop = {name for w in rec.wraps if w not in kept for name in geoms.get(w, ("", "")) if name}
+            drop |= {s for k, s in enumerate(rec.sites) if not i <= k < j}  # via k joins wraps k and k+1
+            out.append(("+".join(kept), frozenset(drop)))
+    return out
+
+
+def split_variants(splits: Iterable[Any], path_geoms: Sequence[Any],
+                   max_variants: int = MAX_VARIANTS) -> dict[str, list[PathVariant]]:
+    """Tendon -> its variants (the first keeps every wrap) for the tendons with a split segment
+    of two or more wraps; ``splits`` are :class:`~o2m.convert.wrap_split.WrapSplit` records,
+    ``path_geoms`` :class:`~o2m.convert.wraps.PathGeom` s."""
+    by_tendon: dict[str, list[Any]] = {}
+    for rec in splits:
+        if len(rec.wraps) > 1:
+            by_tendon.setdefault(rec.path, []).append(rec)
+    out: dict[str, list[PathVariant]] = {}
+    for tendon, recs in by_tendon.items():
+        geoms = {g.source: (g.geom, g.sidesite) for g in path_geoms if g.tendon == tendon}
+        runs = [_segment_runs(r, geoms) for r in recs]
+        if _count(runs) <= max_variants:
+            combos = list(itertools.product(*runs))
+        else:  # one segment at a time, the others whole
+            combos = [tuple(runs[k][0] for k in range(len(runs)))]
+            for k, options in enumerate(runs):
+                combos += [tuple(opt if m == k else runs[m][0] for m in range(len(runs))) for opt in options[1:]]
+        out[tendon] = [PathVariant(" | ".join(c[0] for c in combo), frozenset().union(*[c[1] for c in combo]))
+                       for combo in combos]
+    return out
+
+
+def _count(runs: list[list[Any]]) -> int:
+    n = 1
+    for r in runs:
+        n *= len(r)
+    return n
+
+
+def xml_without(xml: str, tendon: str, dropped: Iterable[str]) -> str:
+    """MJCF text ``xml`` with the sites and geoms ``dropped`` left out of the path of ``tendon``."""
+    dropped = set(dropped)
+    if not dropped:
+        return xml
+    root = etree.fromstring(xml.encode())
+    for ten in root.iter("spatial"):
+        if ten.get("name") != tendon:
+            continue
+        for el in list(ten):
+            if el.get("site") in dropped or el.get("geom") in dropped:
+                ten.remove(el)
+    return etree.tostring(root, encoding="unicode")
+
+
+def _overall(fit: Any) -> float:
+    """A fit's objective over its fitting and check poses together (mm²)."""
+    a, c = fit.after, fit.check_after
+    return (a["objective"] * a["poses"] + c["objective"] * c["poses"]) / max(a["poses"] + c["poses"], 1)
+
+
+def _worst_pct(fit: Any) -> float:
+    """A fit's worst length error over its fitting and check poses (% of OpenSim's length)."""
+    return max(fit.after["len_max_pct"], fit.check_after["len_max_pct"])
+
+
+def best_variant(fits: list[Any]) -> Any:
+    """Of one tendon's fitted variants (:class:`o2m.convert.wrapfit.PathFit` s), the one with the
+    smallest objective over all poses among those whose worst length error is near the smallest
+    (:data:`VARIANT_PCT_FACTOR`); it records every variant's errors."""
+    floor = min(_worst_pct(f) for f in fits)
+    eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
+    best = min(eligible, key=_overall)
+    if len(fits) > 1:
+        best.variants = {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
+    return best
+
+
+#: MjsTendon attributes that are no setting of its own.
+_NOT_COPIED = {"path", "id", "signature", "name", "compiler"}
+
+
+def drop_from_spec(spec: mujoco.MjSpec, dropped: dict[str, Iterable[str]]) -> None:
+    """Leave the sites and geoms ``dropped[tendon]`` out of each tendon's path, and out of the
+    model (they serve that tendon only). MjSpec cannot remove one element of a tendon's path, so
+    the tendons from the first changed one on are re-added, in their order, with their settings."""
+    dropped = {t: set(d) for t, d in dropped.items() if d}
+    tendons = list(spec.tendons)
+    first = next((k for k, t in enumerate(tendons) if t.name in dropped), None)
+    if first is None:
+        return
+    saved = [_save(t, dropped.get(t.name, set())) for t in tendons[first:]]
+    for t in tendons[first:]:
+        spec.delete(t)
+    for name, settings, path in saved:
+        new = spec.add_tendon(name=name)
+        for attr, value in settings.items():
+            setattr(new, attr, value)
+        for kind, args in path:
+            getattr(new, kind)(*args)
+    names = set().union(*dropped.values())
+    for site in list(spec.sites):
+        if site.name in names:
+            spec.delete(site)
+    for geom in list(spec.geoms):
+        if geom.name in names:
+            spec.delete(geom)
+
+
+def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tuple[str, tuple]]]:
+    """A tendon's name, settings and path (adder method, arguments), without ``dropped``."""
+    settings = {}
+    for attr in dir(tendon):
+        if attr.startswith("_") or attr in _NOT_COPIED or attr.startswith("wrap_"):
+            continue
+        value = getattr(tendon, attr)
+        if not callable(value):
+            settings[attr] = value.copy() if hasattr(value, "copy") else value
+    path = []
+    for w in tendon.path:
+        kind = w.type
+        if kind == mujoco.mjtWrap.mjWRAP_SITE:
+            if w.target.name not in dropped:
+                path.append(("wrap_site", (w.target.name,)))
+        elif kind in (mujoco.mjtWrap.mjWRAP_SPHERE, mujoco.mjtWrap.mjWRAP_CYLINDER):
+            if w.target.name not in dropped:
+                path.append(("wrap_geom", (w.target.name, w.sidesite.name if w.sidesite else "")))
+        elif kind == mujoco.mjtWrap.mjWRAP_JOINT:
+            path.append(("wrap_joint", (w.target.name, w.coef)))
+        elif kind == mujoco.mjtWrap.mjWRAP_PULLEY:
+            path.append(("wrap_pulley", (w.divisor,)))
+        else:
+            raise ValueError(f"tendon {tendon.name}: path element of type {kind} not handled")
+    return tendon.name, settings, path
+
+
+__all__ = ["MAX_VARIANTS", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant", "drop_from_spec",
+           "split_variants", "xml_without"]
