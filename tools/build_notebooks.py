@@ -20,6 +20,7 @@ import argparse
 import base64
 import io
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -587,11 +588,16 @@ def _small_png(b64: str) -> str:
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
+OBJECT_ADDRESS = re.compile(r" at 0x[0-9a-f]+>")
+
+
 def _replace_paths(text: str | list, replacements: dict[str, str]) -> str:
+    """``text`` with machine paths replaced and object addresses (``<... at 0x7f...>``, new in
+    every kernel) dropped."""
     text = "".join(text) if isinstance(text, list) else text
     for path, label in replacements.items():
         text = text.replace(path, label)
-    return text
+    return OBJECT_ADDRESS.sub(">", text)
 
 
 def normalise(nb: nbformat.NotebookNode, replacements: dict[str, str]) -> None:
