@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from o2m.paper.self_spread import compare_runs, scale_muscle_forces
-from tests.helpers import model_file
+from tests.helpers import MUSCLE_PENDULUM, model_file
 
 
 def test_compare_runs_mean_and_max_per_joint():
@@ -58,22 +58,6 @@ def test_edit_one_muscle_leaves_the_others(tmp_path):
         edit_muscles(src, dst, (("NOPE", "optimal_fiber_length", 1.0, 1e-4),))
 
 
-PENDULUM = """
-<mujoco>
-  <option timestep="0.002"/>
-  <worldbody>
-    <body name="link" pos="0 0 1">
-      <joint name="swing" type="hinge" axis="0 1 0" damping="0.05"/>
-      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="1"/>
-      <site name="tip" pos="0.5 0 0"/>
-    </body>
-    <site name="anchor" pos="0.3 0 1.4"/>
-  </worldbody>
-  <tendon><spatial name="lifter"><site site="anchor"/><site site="tip"/></spatial></tendon>
-  <actuator><muscle name="lifter" tendon="lifter" force="40" lengthrange="0.3 0.9"/></actuator>
-</mujoco>
-"""
-
 
 def _pendulum_experiment():
     """A one-muscle pendulum laid out like :func:`o2m.paper.load_experiment`'s experiment."""
@@ -83,7 +67,7 @@ def _pendulum_experiment():
 
     from o2m.mj.simulate import initial_state
 
-    model = mujoco.MjModel.from_xml_string(PENDULUM)
+    model = mujoco.MjModel.from_xml_string(MUSCLE_PENDULUM)
     n_t = 201
     ds = SimpleNamespace(coordinate_names=["swing"], coordinates=np.full((1, n_t, 1), 0.3),
                          speeds=np.zeros((1, n_t, 1)), muscle_names=["lifter"],
