@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 
 def always_one_island(model: mujoco.MjModel) -> bool:
@@ -21,23 +23,16 @@ def always_one_island(model: mujoco.MjModel) -> bool:
     the others by active joint equalities: its constraint islands can then never be more than one,
     and that one covers every degree of freedom. Equalities of other kinds are not followed (False
     unless the joint equalities alone tie the trees)."""
-    trees = sorted({int(t) for t in model.dof_treeid})
-    if not trees:
+    trees = np.unique(model.dof_treeid)
+    if not len(trees):
         return False
-    parent = {t: t for t in trees}
-
-    def root(t: int) -> int:
-        while parent[t] != t:
-            t = parent[t]
-        return t
-
-    for e in np.flatnonzero(model.eq_active0):
-        if model.eq_type[e] != mujoco.mjtEq.mjEQ_JOINT or model.eq_obj2id[e] < 0:
-            continue
-        a, b = (int(model.dof_treeid[model.jnt_dofadr[model.eq_obj1id[e]]]),
-                int(model.dof_treeid[model.jnt_dofadr[model.eq_obj2id[e]]]))
-        parent[root(a)] = root(b)
-    return len({root(t) for t in trees}) == 1
+    ties = [e for e in np.flatnonzero(model.eq_active0)
+            if model.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT and model.eq_obj2id[e] >= 0]
+    tree_of = {int(t): i for i, t in enumerate(trees)}  # tree id -> graph node
+    ends = [[tree_of[int(model.dof_treeid[model.jnt_dofadr[model.eq_obj1id[e]]])] for e in ties],
+            [tree_of[int(model.dof_treeid[model.jnt_dofadr[model.eq_obj2id[e]]])] for e in ties]]
+    graph = coo_matrix((np.ones(len(ties)), ends), shape=(len(trees), len(trees)))
+    return connected_components(graph, directed=False)[0] == 1
 
 
 def disable_single_island(spec: mujoco.MjSpec, model: mujoco.MjModel) -> bool:
