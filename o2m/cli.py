@@ -38,7 +38,12 @@ def cmd_convert(a: argparse.Namespace) -> int:
 
     osim, geometry = _osim_path(a.model, a.geometry)
     quick = _quick(a)
-    options = ConvertOptions(path_forces=a.path_forces, length_vias=not a.no_length_vias, quick=quick)
+    try:
+        options = ConvertOptions(path_forces=a.path_forces, length_vias=not a.no_length_vias, quick=quick,
+                                 workers=a.workers, bushing_tolerance=a.bushing_tolerance,
+                                 **({} if a.carrier_tolerance is None else {"carrier_tolerance": a.carrier_tolerance}))
+    except ValueError as exc:
+        raise SystemExit(f"o2m convert: {exc}") from None
     result = convert(osim, a.output, options, geometry_dirs=geometry)
     print(result.report.summary() if a.verbose else
           f"wrote {result.xml} ({result.report.seconds:.2f} s; {len(result.report.approximations)} "
@@ -225,6 +230,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep one wrap per segment where several share it, instead of a length via point "
                         "(o2m.convert.lengthvia)")
     c.add_argument("--quick", action="store_true", help="the wrap fits' small sizes (also with O2M_QUICK=1)")
+    c.add_argument("--workers", type=int, default=None, help="processes for the wrap fits (default: all cores)")
+    c.add_argument("--carrier-tolerance", type=float, default=None, metavar="M",
+                   help="how far (m) a moving path point may leave its locus to get a simpler carrier; above "
+                        "the default (1e-6, exact) the model is faster and approximate, and the report names each "
+                        "point changed")
+    c.add_argument("--bushing-tolerance", type=float, default=None, metavar="RAD_OR_M",
+                   help="convert a non-linear BushingForce whose best linear fit deflects at most this much "
+                        "wrong (default: only linear, exact, ones); the report records each error")
     c.add_argument("--no-moment-arm-plots", dest="moment_arm_plots", action="store_false",
                    help="skip the moment-arm sweeps against OpenSim (<stem>.moment_arms.pdf)")
     c.set_defaults(func=cmd_convert)

@@ -259,3 +259,11 @@ def test_bushing_tolerance_converts_approximations(model_path, tmp_path):
                                                              "points_damped"}
     with pytest.raises(ValueError, match="bushing_tolerance"):
         ConvertOptions(bushing_tolerance=-1.0)
+    from o2m.cli import main  # the same choice from the command line
+
+    assert main(["convert", str(model_path), "-o", str(tmp_path / "cli"), "--bushing-tolerance", f"{worst * 2}",
+                 "--no-moment-arm-plots"]) == 0
+    report = (tmp_path / "cli" / f"{model_path.stem}.report.txt").read_text()
+    assert "composed" in report and f"{worst:.3g}" in report
+    with pytest.raises(SystemExit, match="bushing_tolerance"):
+        main(["convert", str(model_path), "-o", str(tmp_path / "bad"), "--bushing-tolerance", "-1"])
