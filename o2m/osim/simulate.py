@@ -354,42 +354,64 @@ def run_isolated(osim_path: str | os.PathLike[str], times: np.ndarray, excitatio
 
 
 def run_many(osim_path: str | os.PathLike[str], times: np.ndarray, excitation_sets: np.ndarray,
-             muscles: Sequence[str], *, initial_state: Mapping[str, float] | None = None,
+             muscles: Sequence[str], *, sets: Sequence[int] | None = None,
+             runs_dir: str | os.PathLike[str] | None = None,
+             initial_state: Mapping[str, float] | None = None,
              settings: IntegratorSettings = IntegratorSettings(), timeout: float = 600.0,
              executor: cf.Executor | None = None, max_workers: int | None = None,
-             progress: bool = True, opensim_log: str | os.PathLike[str] | None = None) -> list[OpenSimRun]:
-    """Run every set of ``excitation_sets`` (shape (n_sets, T, n_muscles)) with :func:`run_isolated`.
+             progress: bool = True, desc: str = "OpenSim runs",
+             opensim_log: str | os.PathLike[str] | None = None) -> list[OpenSimRun]:
+    """Run sets of ``excitation_sets`` (shape (n_sets, T, n_muscles)) with :func:`run_isolated`.
 
-    ``executor`` is any :class:`concurrent.futures.Executor` (a Dask client's
-    ``get_executor()`` works); by default a local process pool with ``max_workers`` (all cores)
-    workers. Results come back in set order; a failure in one set never stops the others.
-    ``opensim_log``: the file every run appends OpenSim's log to (see :func:`run_isolated`).
+    Args:
+        sets: the set indices to run, in the order they are started (default: all, in order).
+        runs_dir: resume there: a set whose ``set_NNN.npz`` exists is read, not run, and every
+            new run is written there as soon as it finishes (so an interrupted batch loses at
+            most the runs in flight).
+        executor: any :class:`concurrent.futures.Executor` (a Dask client's ``get_executor()``
+            works); by default a local process pool with ``max_workers`` (all cores) workers.
+        opensim_log: the file every run appends OpenSim's log to (see :func:`run_isolated`).
+
+    Returns:
+        One run per entry of ``sets``, in that order. A failure in one set never stops the
+        others; it is reported under the progress bar.
     """
     from tqdm.auto import tqdm
 
-    own = executor is None
+    order = list(range(len(excitation_sets)) if sets is None else sets)
+    saved = Path(runs_dir) if runs_dir is not None else None
+    if saved is not None:
+        saved.mkdir(parents=True, exist_ok=True)
+    done: dict[int, OpenSimRun] = {i: OpenSimRun.from_npz(saved / f"set_{i:03d}.npz") for i in order
+                                   if saved is not None and (saved / f"set_{i:03d}.npz").exists()}
+    todo = [i for i in order if i not in done]
+    own = executor is None and bool(todo)
     if own:
         executor = cf.ProcessPoolExecutor(max_workers=max_workers or os.cpu_count())
+    bar = tqdm(total=len(order), initial=len(done), desc=desc, unit="run", disable=not progress)
     try:
         futures = {executor.submit(run_isolated, str(osim_path), times, excitation_sets[i], list(muscles),
                                    initial_state=dict(initial_state or {}), settings=settings, timeout=timeout,
                                    opensim_log=opensim_log): i
-                   for i in range(len(excitation_sets))}
-        runs: list[OpenSimRun | None] = [None] * len(futures)
-        bar = tqdm(total=len(futures), desc="OpenSim runs", unit="run", disable=not progress)
+                   for i in todo}
         failed = 0
         for fut in cf.as_completed(futures):
             i = futures[fut]
             try:
-                runs[i] = fut.result()
+                run = fut.result()
             except Exception as exc:  # the executor itself failed (lost worker, pickling)
-                runs[i] = OpenSimRun.empty("failed", f"executor error: {exc!r}", times)
-            failed += not runs[i].ok
-            bar.set_postfix(failed=failed)
+                run = OpenSimRun.empty("failed", f"executor error: {exc!r}", times)
+            if saved is not None:
+                run.to_npz(saved / f"set_{i:03d}.npz")
+            if not run.ok:
+                failed += 1
+                bar.write(f"set {i}: {run.status}: {run.reason}")
+                bar.set_postfix(failed=failed)
+            done[i] = run
             bar.update()
-        bar.close()
-        return runs  # type: ignore[return-value]
+        return [done[i] for i in order]
     finally:
+        bar.close()
         if own:
             executor.shutdown()
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from o2m.activations import ActivationSets, generate_activations
 from o2m.osim import runtime
-from o2m.osim.simulate import IntegratorSettings, OpenSimRun, read_initial_state, run_isolated
+from o2m.osim.simulate import IntegratorSettings, OpenSimRun, read_initial_state, run_many
 
 __all__ = ["Dataset", "MOBL_MODEL", "load_dataset", "make_dataset", "make_split"]
 
@@ -116,10 +116,6 @@ def make_dataset(out_dir: str | os.PathLike[str], *, n_sets: int = 100, seed: in
 
     Every OpenSim run appends its log to ``opensim_log`` (default ``<out>/runs/opensim.log``).
     """
-    import concurrent.futures as cf
-
-    from tqdm.auto import tqdm
-
     from o2m import models
 
     out = Path(out_dir)
@@ -136,30 +132,9 @@ def make_dataset(out_dir: str | os.PathLike[str], *, n_sets: int = 100, seed: in
     sets = generate_activations(muscles, n_sets, seed=seed)
     _save_activations(out / "activations.npz", sets)
 
-    todo = [i for i in range(n_sets) if not (runs_dir / f"set_{i:03d}.npz").exists()]
-    own = executor is None
-    if own:
-        executor = cf.ProcessPoolExecutor(max_workers=max_workers or os.cpu_count())
-    try:
-        futures = {executor.submit(run_isolated, str(osim_path), sets.times, sets.values[i], muscles,
-                                   initial_state=init, settings=settings, timeout=timeout,
-                                   opensim_log=log_file): i for i in todo}
-        bar = tqdm(total=n_sets, initial=n_sets - len(todo), desc="OpenSim runs", unit="run", disable=not progress)
-        for fut in cf.as_completed(futures):
-            i = futures[fut]
-            try:
-                run = fut.result()
-            except Exception as exc:
-                run = OpenSimRun.empty("failed", f"executor error: {exc!r}", sets.times)
-            run.to_npz(runs_dir / f"set_{i:03d}.npz")
-            if not run.ok:
-                bar.write(f"set {i}: {run.status}: {run.reason}")
-            bar.update()
-        bar.close()
-    finally:
-        if own:
-            executor.shutdown()
-    runs = [OpenSimRun.from_npz(runs_dir / f"set_{i:03d}.npz") for i in range(n_sets)]
+    runs = run_many(osim_path, sets.times, sets.values, muscles, runs_dir=runs_dir, initial_state=init,
+                    settings=settings, timeout=timeout, executor=executor, max_workers=max_workers,
+                    progress=progress, opensim_log=log_file)
     meta = {"model": models.bundled_model(model).osim,
             "model_sha256": models.sha256_of(osim_path), "opensim_version": opensim.__version__,
             "integrator": settings.__dict__, "seed": seed, "n_sets": n_sets, "timeout_s": timeout,

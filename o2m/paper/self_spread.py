@@ -42,7 +42,7 @@ import numpy as np
 from lxml import etree
 
 from o2m import models
-from o2m.osim.simulate import IntegratorSettings, OpenSimRun, read_initial_state, run_isolated
+from o2m.osim.simulate import IntegratorSettings, OpenSimRun, read_initial_state, run_many
 from o2m.paper.dataset import MOBL_INITIAL_STATE, MOBL_MODEL, Dataset, load_dataset
 
 __all__ = ["VARIANTS", "Variant", "compare_runs", "edit_muscles", "load_spread", "mujoco_errors", "mujoco_self_spread",
@@ -141,16 +141,9 @@ def run_variant(variant: Variant, dataset: Dataset, runs_dir: Path, *, max_worke
     Finished runs are read from ``runs_dir/<variant>/set_NNN.npz`` and new ones written there as
     they finish. A perturbed model is written to a temporary folder and deleted afterwards.
     """
-    from tqdm.auto import tqdm
-
-    out = runs_dir / variant.name
-    out.mkdir(parents=True, exist_ok=True)
     sets = list(variant.sets if variant.sets is not None else dataset.test)
     # the sets where MuJoCo is farthest first, so that a partial run answers the question
-    todo = sorted((i for i in sets if not (out / f"set_{i:03d}.npz").exists()),
-                  key=lambda i: (i not in FIRST, FIRST.index(i) if i in FIRST else i))
-    muscles = list(dataset.activations.muscles)
-    init = _initial_state(variant)
+    first = sorted(sets, key=lambda i: (i not in FIRST, FIRST.index(i) if i in FIRST else i))
     with tempfile.TemporaryDirectory(prefix="o2m-self-spread-") as tmp:
         osim = models.fetch_model(MOBL_MODEL, progress=False)
         if variant.muscle_edits:
@@ -158,15 +151,11 @@ def run_variant(variant: Variant, dataset: Dataset, runs_dir: Path, *, max_worke
             edit_muscles(models.fetch_model(MOBL_MODEL, progress=False), osim, variant.muscle_edits)
         # threads suffice: every run is its own OpenSim process
         with cf.ThreadPoolExecutor(max_workers=max_workers) as pool:
-            futures = {pool.submit(run_isolated, osim, dataset.times, dataset.activations.values[i], muscles,
-                                   initial_state=init, settings=variant.settings, timeout=timeout,
-                                   opensim_log=runs_dir / "opensim.log"): i for i in todo}
-            bar = tqdm(total=len(sets), initial=len(sets) - len(todo), desc=variant.name, disable=not progress)
-            for fut in cf.as_completed(futures):
-                fut.result().to_npz(out / f"set_{futures[fut]:03d}.npz")
-                bar.update()
-            bar.close()
-    return {i: OpenSimRun.from_npz(out / f"set_{i:03d}.npz") for i in sets}
+            runs = run_many(osim, dataset.times, dataset.activations.values, list(dataset.activations.muscles),
+                            sets=first, runs_dir=runs_dir / variant.name, initial_state=_initial_state(variant),
+                            settings=variant.settings, timeout=timeout, executor=pool, progress=progress,
+                            desc=variant.name, opensim_log=runs_dir / "opensim.log")
+    return dict(zip(first, runs, strict=True))
 
 
 def compare_runs(reference: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -172,6 +172,24 @@ def test_run_many_keeps_going_past_a_failure_on_a_dask_cluster(arm26):
     assert np.array_equal(again[0].coordinates, runs[0].coordinates)
 
 
+def test_run_many_resumes_from_its_runs_folder(arm26, tmp_path):
+    """Finished sets are read back, not rerun; new ones are written as they finish; results come
+    in the order asked for."""
+    osim, _ = arm26
+    t = np.arange(51) * 0.002
+    sets = np.stack([np.full((len(t), 6), a) for a in (0.1, 0.3, 0.6)])
+    first = run_many(osim, t, sets, ARM26_MUSCLES, sets=[2, 0], runs_dir=tmp_path, max_workers=1, progress=False)
+    assert sorted(p.name for p in tmp_path.glob("set_*.npz")) == ["set_000.npz", "set_002.npz"]
+    marker = OpenSimRun.empty("failed", "written by the test, not by OpenSim", t)
+    marker.to_npz(tmp_path / "set_002.npz")  # a rerun would overwrite it
+    second = run_many(osim, t, sets, ARM26_MUSCLES, sets=[1, 2, 0], runs_dir=tmp_path, max_workers=1,
+                      progress=False)
+    assert [r.status for r in second] == ["ok", "failed", "ok"]
+    assert second[1].reason == marker.reason
+    assert np.array_equal(second[2].coordinates, first[1].coordinates)
+    assert (tmp_path / "set_001.npz").exists()
+
+
 def test_a_force_driven_model_replays_the_muscle_forces_exactly():
     """Fed the forces its muscle applied, the force-driven twin moves as the muscle model did
     (tendon spring, joint damping and the other actuator kept); a 1 % stronger force does not."""
