@@ -19,9 +19,14 @@
   of a slide from 2 m/s). Models with contact pairs use MuJoCo's elliptic friction cone.
   ``solref`` needs the compiled model (its effective masses), so :func:`fit_contacts` sets it
   after the first compilation; :func:`measure_contacts` records the fit's measured errors.
+* **SmoothSphereHalfSpaceForce** (one ContactSphere against one ContactHalfSpace) is the same
+  Hunt-Crossley law of its one surface against itself, smoothed
+  (:mod:`o2m.convert.contact_smooth`): the same geoms and pair, with a spring-damper and a pair
+  ``margin`` fitted to the smooth law's impact and resting point; the report measures it
+  against that law.
 * **Not converted**, each listed as skipped with what that changes: ContactMesh (Simbody's
-  Hunt-Crossley applies no force to mesh contacts), the other ContactGeometry types,
-  ElasticFoundationForce (mesh contact) and SmoothSphereHalfSpaceForce.
+  Hunt-Crossley applies no force to mesh contacts), the other ContactGeometry types and
+  ElasticFoundationForce (mesh contact).
 
 Units: SI (m, kg, s, N); OpenSim frames are Y-up, the MuJoCo world Z-up (:data:`o2m.transforms.OSIM_TO_MJ`).
 """
@@ -47,6 +52,7 @@ from o2m.convert.contact_fit import (
     measure_impacts,
     measure_slide,
 )
+from o2m.convert.contact_smooth import SmoothHuntCrossley, fit_smooth, measure_falls, measure_smooth_slide
 from o2m.convert.force_context import (
     ContactConversion,
     ContactGeom,
@@ -60,8 +66,8 @@ from o2m.convert.force_context import (
 from o2m.osim.skeleton import Skipped
 from o2m.transforms import OSIM_TO_MJ, Transform, body_fixed_xyz, matrix_to_quat
 
-__all__ = ["BOX_HALF", "CONTACT_SKIPS", "IMPACT_DURATION", "IMPACT_PEAK", "IMPACT_RESTITUTION", "SLIDE_DISTANCE",
-           "SOLIMP", "convert_hunt_crossley", "fit_contacts",
+__all__ = ["BOX_HALF", "CONTACT_SKIPS", "FALL_DEEPEST", "IMPACT_DURATION", "IMPACT_PEAK", "IMPACT_RESTITUTION",
+           "SLIDE_DISTANCE", "SOLIMP", "convert_hunt_crossley", "convert_smooth_sphere", "fit_contacts",
            "measure_contacts", "skip_force", "skip_unused_geometry"]
 
 #: Half size (m) of the box that stands for a half space on a moving body.
@@ -76,8 +82,6 @@ _PLANE_IN_FRAME = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 CONTACT_SKIPS = {
     "ElasticFoundationForce": "elastic foundation (mesh) contact is not converted: its geometry gets no MuJoCo "
                               "contact, so these bodies pass through each other in MuJoCo",
-    "SmoothSphereHalfSpaceForce": "smooth sphere-half space contact is not converted: the sphere gets no MuJoCo "
-                                  "contact and passes through the half space in MuJoCo",
 }
 
 
@@ -185,14 +189,19 @@ def _pairable(member_a: tuple[ContactGeom, Surface], member_b: tuple[ContactGeom
 
 
 def _add_pair(ctx: _Context, force: str, a: tuple[ContactGeom, Surface], b: tuple[ContactGeom, Surface],
-              transition: float) -> None:
+              transition: float, smoothing: dict[str, float] | None = None) -> None:
+    """A ``<pair>`` of ``a`` and ``b`` (the plane first); ``smoothing``: the keyword arguments of
+    :class:`~o2m.convert.contact_smooth.SmoothHuntCrossley` for a smooth force."""
     (ga, sa), (gb, sb) = (a, b) if a[0].kind == "plane" or b[0].kind != "plane" else (b, a)
     radius = gb.radius if ga.kind == "plane" else ga.radius * gb.radius / (ga.radius + gb.radius)
     law = HuntCrossley.combine(sa, sb, radius, transition)
+    if smoothing is not None:
+        law = SmoothHuntCrossley(**vars(law), **smoothing)
     name = ctx.unique("pair", f"{force}_{ga.name}_{gb.name}")
     pair = ctx.spec.add_pair(name=name, geomname1=ga.geom, geomname2=gb.geom, solimp=list(SOLIMP))  # fit_contacts
     # sets its friction and solref
-    ctx.out.contact.pairs.append(ContactPair(force, name, ga, gb, law, pair))
+    element = "HuntCrossleyForce" if smoothing is None else "SmoothSphereHalfSpaceForce"
+    ctx.out.contact.pairs.append(ContactPair(force, name, ga, gb, law, pair, element=element))
 
 
 def convert_hunt_crossley(ctx: _Context, el: etree._Element) -> None:
@@ -221,8 +230,46 @@ def convert_hunt_crossley(ctx: _Context, el: etree._Element) -> None:
     ctx.out.contact.forces.append(name)
 
 
+#: SmoothSphereHalfSpaceForce's smoothing properties, OpenSim's defaults, and their names in
+#: :class:`~o2m.convert.contact_fit.SmoothHuntCrossley`.
+_SMOOTHING = (("hertz_smoothing", 300.0, "hertz_smoothing"),
+              ("hunt_crossley_smoothing", 50.0, "hunt_crossley_smoothing"),
+              ("constant_contact_force", 1e-5, "constant_contact_force"))
+
+
+def convert_smooth_sphere(ctx: _Context, el: etree._Element) -> None:
+    """SmoothSphereHalfSpaceForce -> the sphere's and half space's geoms and one ``<pair>``."""
+    name = el.get("name", "")
+    if el.find("socket_sphere") is None:  # Moco's form before OpenSim 4.3: the geometry inline
+        ctx.out.skipped.append(Skipped(el.tag, name, "written in the pre-4.3 form (sphere and half space given "
+                                       "inline, not as contact geometry): not converted; its sphere passes "
+                                       "through the half space in MuJoCo (open and save it in OpenSim 4.6)"))
+        return
+    sphere = ctx.builder.doc.resolve(el.find("socket_sphere"))
+    half_space = ctx.builder.doc.resolve(el.find("socket_half_space"))
+    if sphere.tag != "ContactSphere" or half_space.tag != "ContactHalfSpace":
+        raise ctx.builder.doc.error(el, f"connects a {sphere.tag} and a {half_space.tag}; it needs a ContactSphere "
+                                        "and a ContactHalfSpace")
+    vals = [_number(el, prop, default, ctx) for prop, default in (
+        ("stiffness", 1.0), ("dissipation", 0.0), ("static_friction", 0.0), ("dynamic_friction", 0.0),
+        ("viscous_friction", 0.0), ("transition_velocity", 0.01))]
+    smoothing = {key: _number(el, prop, default, ctx) for prop, default, key in _SMOOTHING}
+    if min(vals) < 0 or vals[-1] <= 0 or min(smoothing.values()) < 0:
+        raise ctx.builder.doc.error(el, "has a negative stiffness, dissipation, friction or smoothing, or a "
+                                        "transition_velocity that is not positive")
+    surface = Surface(*vals[:5])
+    a, b = (_add_geom(ctx, half_space), surface), (_add_geom(ctx, sphere), surface)
+    why = _pairable(a, b)
+    if why:
+        ctx.out.skipped.append(Skipped(el.tag, name, f"its sphere and half space cannot touch in MuJoCo ({why}): "
+                                                     "it applies no force"))
+        return
+    _add_pair(ctx, name, a, b, vals[-1], smoothing)
+    ctx.out.contact.forces.append(name)
+
+
 def skip_force(ctx: _Context, el: etree._Element) -> None:
-    """ElasticFoundationForce, SmoothSphereHalfSpaceForce: listed as skipped with what that changes."""
+    """ElasticFoundationForce: listed as skipped with what that changes."""
     ctx.out.skipped.append(Skipped(el.tag, el.get("name", ""), CONTACT_SKIPS[el.tag]))
 
 
@@ -275,7 +322,10 @@ def fit_contacts(out: ForceConversion, spec: mujoco.MjSpec, model: mujoco.MjMode
     for cp in pairs:
         bodies = [int(model.geom_bodyid[model.geom(g.geom).id]) for g in (cp.first, cp.second)]
         cp.inverse_weight = float(sum(model.body_invweight0[b, 0] for b in bodies))
-        cp.fit = fit_linear(cp.law, _effective_mass(model, data, cp), gravity, dt)
+        fit = fit_smooth if isinstance(cp.law, SmoothHuntCrossley) else fit_linear
+        cp.fit = fit(cp.law, _effective_mass(model, data, cp), gravity, dt)
+        if cp.fit.margin > 0:
+            cp.pair.margin = cp.fit.margin
         mu = max(cp.fit.friction, 1e-5)
         cp.pair.friction = [mu, mu, 0.005, 0.0001, 0.0001]
         cp.pair.condim = 3 if cp.fit.friction > 0 else 1
@@ -298,9 +348,15 @@ def measure_contacts(out: ForceConversion, model: mujoco.MjModel, builder: MjcfB
     for cp in out.contact.pairs:
         by_force.setdefault(cp.force, []).append(cp)
     for force, pairs in by_force.items():
-        impacts = [(cp, measure_impacts(cp.law, cp.fit, dt, SOLIMP, gravity)) for cp in pairs]
-        builder.result.approximations.extend(_impact_records(force, impacts, gravity))
-        slides = [(cp, measure_slide(cp.law, cp.fit, dt, SOLIMP, gravity)) for cp in pairs
+        smooth = isinstance(pairs[0].law, SmoothHuntCrossley)
+        if smooth:
+            falls = [(cp, measure_falls(cp.law, cp.fit, dt, SOLIMP, gravity)) for cp in pairs]
+            builder.result.approximations.extend(_fall_records(force, falls))
+        else:
+            impacts = [(cp, measure_impacts(cp.law, cp.fit, dt, SOLIMP, gravity)) for cp in pairs]
+            builder.result.approximations.extend(_impact_records(force, impacts, gravity))
+        slide = measure_smooth_slide if smooth else measure_slide
+        slides = [(cp, slide(cp.law, cp.fit, dt, SOLIMP, gravity)) for cp in pairs
                   if cp.fit.friction > 0 and gravity > 0]
         if slides:
             builder.result.approximations.append(_slide_record(force, slides))
@@ -310,11 +366,13 @@ def measure_contacts(out: ForceConversion, model: mujoco.MjModel, builder: MjcfB
 IMPACT_PEAK = "peak penetration of an impact"
 IMPACT_RESTITUTION = "coefficient of restitution of an impact"
 IMPACT_DURATION = "contact time of an impact"
+FALL_DEEPEST = "deepest point of an impact"
 SLIDE_DISTANCE = f"stopping distance of a slide from {SLIDE_SPEED:g} m/s"
 
 
 def _impact_records(force: str, rows: list[tuple[ContactPair, list]], gravity: float) -> list[Approximation]:
     """Worst errors over the pairs and speeds: peak penetration (%), restitution (absolute), contact time (%)."""
+    element = rows[0][0].element
     triples = [(hc, mj) for _, ms in rows for _, hc, mj in ms]
     masses = sorted(cp.fit.mass for cp, _ in rows)
     where = (f"{len(rows)} pairs, effective masses {masses[0]:.3g}-{masses[-1]:.3g} kg falling at "
@@ -325,14 +383,29 @@ def _impact_records(force: str, rows: list[tuple[ContactPair, list]], gravity: f
     mj_e = [mj.restitution for _, ms in rows for _, _, mj in ms]
     peak = max(abs(mj.peak / hc.peak - 1) for hc, mj in triples)
     return [
-        Approximation("HuntCrossleyForce", force, IMPACT_PEAK, 100 * peak, "%",
+        Approximation(element, force, IMPACT_PEAK, 100 * peak, "%",
                       f"{where}; resting penetration off by up to {100 * resting:.3g} %"),
-        Approximation("HuntCrossleyForce", force, IMPACT_RESTITUTION,
+        Approximation(element, force, IMPACT_RESTITUTION,
                       max(abs(mj.restitution - hc.restitution) for hc, mj in triples), "",
                       f"{where}; Hunt-Crossley {min(hc_e):.3g}-{max(hc_e):.3g}, MuJoCo {min(mj_e):.3g}-{max(mj_e):.3g} "
                       "(a spring-damper's restitution does not fall with speed)"),
-        Approximation("HuntCrossleyForce", force, IMPACT_DURATION,
+        Approximation(element, force, IMPACT_DURATION,
                       100 * max(abs(mj.duration / hc.duration - 1) for hc, mj in triples), "%", where)]
+
+
+def _fall_records(force: str, rows: list[tuple[ContactPair, list]]) -> list[Approximation]:
+    """A smooth force's worst errors over pairs and speeds: deepest point (mm), restitution (absolute)."""
+    triples = [(cp, law, mj) for cp, ms in rows for _, law, mj in ms]
+    margins = sorted(cp.fit.margin for cp, _ in rows)
+    where = (f"{len(rows)} pairs, margins {1e3 * margins[0]:.3g}-{1e3 * margins[-1]:.3g} mm, falling from where "
+             f"neither pushes at {', '.join(f'{v:g}' for v in SPEEDS)} m/s; fitted at {REFERENCE_SPEED:g} m/s")
+    depth = ", ".join(f"{1e3 * law.deepest:.3g}/{1e3 * mj.deepest:.3g}" for _, law, mj in triples[:len(SPEEDS)])
+    return [
+        Approximation("SmoothSphereHalfSpaceForce", force, FALL_DEEPEST,
+                      1e3 * max(abs(mj.deepest - law.deepest) for _, law, mj in triples), "mm",
+                      f"{where}; smooth law/MuJoCo {depth} mm (negative: above the surface)"),
+        Approximation("SmoothSphereHalfSpaceForce", force, IMPACT_RESTITUTION,
+                      max(abs(mj.restitution - law.restitution) for _, law, mj in triples), "", where)]
 
 
 def _slide_record(force: str, rows: list[tuple[ContactPair, tuple]]) -> Approximation:
@@ -342,6 +415,6 @@ def _slide_record(force: str, rows: list[tuple[ContactPair, tuple]]) -> Approxim
     mu = ", ".join(f"mu = {m:.3g} for static {s:.3g}, dynamic {d:.3g}, viscous {v:.3g} s/m"
                    for m, s, d, v in sorted(laws))
     dist = ", ".join(sorted({f"{hc.distance:.3g}/{mj.distance:.3g}" for _, (hc, mj) in rows}))
-    return Approximation("HuntCrossleyForce", force, SLIDE_DISTANCE, 100 * err, "%",
+    return Approximation(rows[0][0].element, force, SLIDE_DISTANCE, 100 * err, "%",
                          f"{len(rows)} pairs, stopped below {100 * STOPPED:g} % of the speed; Hunt-Crossley/MuJoCo "
                          f"{dist} m; friction {mu}")

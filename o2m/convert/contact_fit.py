@@ -121,6 +121,10 @@ class HuntCrossley:
         x = np.maximum(np.asarray(x, dtype=float), 0.0)
         return np.maximum(self.stiffness * x ** 1.5 * (1.0 + 1.5 * self.dissipation * np.asarray(xdot)), 0.0)
 
+    def unclamped(self, x: float, xdot: float) -> float:
+        """Simbody's normal force (N) before the clamp at 0, which its friction scales with."""
+        return self.stiffness * x ** 1.5 * (1.0 + 1.5 * self.dissipation * xdot) if x > 0 else 0.0
+
     def friction(self, normal: float, slip: np.ndarray) -> np.ndarray:
         """Friction force (N) at slip speed ``slip`` (m/s, >= 0) under normal force ``normal`` (N)."""
         v = np.asarray(slip, dtype=float)
@@ -202,7 +206,7 @@ def _hertz_slide(law: HuntCrossley, mass: float, speed: float, gravity: float) -
     with the unclamped normal force f."""
     def rhs(t, y):
         z, zd, x, xd = y
-        f = law.stiffness * z ** 1.5 * (1.0 + 1.5 * law.dissipation * zd) if z > 0 else 0.0
+        f = law.unclamped(z, zd)
         return [zd, gravity - max(f, 0.0) / mass, xd, -float(law.friction(f, abs(xd))) * np.sign(xd) / mass]
 
     def stopped(t, y):
@@ -236,6 +240,7 @@ class LinearContact:
     mass: float
     friction_damping: float
     friction: float  # MuJoCo's (Coulomb) friction coefficient
+    margin: float = 0.0  # m: the spring acts from this far outside the surface (MuJoCo's pair margin)
 
     @property
     def omega(self) -> float:
@@ -308,7 +313,7 @@ def _probe(contact: LinearContact, law: HuntCrossley, timestep: float, impedance
     body.add_geom(name="sphere", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.1, 0, 0], contype=0, conaffinity=0)
     mu = max(contact.friction, 1e-5)
     pair = spec.add_pair(geomname1="plane", geomname2="sphere", condim=3 if contact.friction > 0 else 1,
-                         friction=[mu, mu, 0.005, 0.0001, 0.0001], solimp=list(impedance))
+                         friction=[mu, mu, 0.005, 0.0001, 0.0001], solimp=list(impedance), margin=contact.margin)
     model = spec.compile()
     weight = float(model.body_invweight0[1, 0])
     pair.solref, pair.solreffriction = list(contact.solref(weight)), list(contact.solreffriction(weight))
@@ -343,9 +348,10 @@ def measure_impacts(law: HuntCrossley, contact: LinearContact, timestep: float, 
     return [(v, law.impact(contact.mass, v, gravity), _mujoco_impact(model, v)) for v in speeds]
 
 
-def _mujoco_slide(model: mujoco.MjModel, speed: float) -> Slide:
+def _mujoco_slide(model: mujoco.MjModel, speed: float, penetration: float = 0.0) -> Slide:
+    """Slide the probe from ``speed`` (m/s), set down at ``penetration`` (m)."""
     data, dt = mujoco.MjData(model), model.opt.timestep
-    data.qvel[1] = speed
+    data.qpos[0], data.qvel[1] = -penetration, speed
     for i in range(1, int(60.0 / dt)):
         mujoco.mj_step(model, data)
         if data.qvel[1] < STOPPED * speed:

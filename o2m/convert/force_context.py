@@ -195,7 +195,7 @@ class ContactGeom:
 
 @dataclass
 class ContactPair:
-    """A pair of contact geoms of one HuntCrossleyForce and the MuJoCo contact it became."""
+    """A pair of contact geoms of one contact force and the MuJoCo contact it became."""
 
     force: str
     name: str  # the MuJoCo pair
@@ -205,6 +205,7 @@ class ContactPair:
     pair: mujoco.MjsPair
     fit: LinearContact | None = None
     inverse_weight: float = 0.0  # 1/kg, MuJoCo's scale of solref for this pair
+    element: str = "HuntCrossleyForce"  # the force's OpenSim type
 
 
 @dataclass

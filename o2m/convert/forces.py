@@ -15,9 +15,9 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
   in q and qdot (:mod:`o2m.convert.expression_forces`); skipped otherwise.
 * **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
   (:mod:`o2m.convert.actuators`).
-* **HuntCrossleyForce**: geoms for its ContactSpheres and ContactHalfSpaces and explicit contact
-  pairs (:mod:`o2m.convert.contact`); ElasticFoundationForce and SmoothSphereHalfSpaceForce are
-  listed as skipped, and so is contact geometry no converted force uses.
+* **HuntCrossleyForce**, **SmoothSphereHalfSpaceForce**: geoms for their ContactSpheres and
+  ContactHalfSpaces and explicit contact pairs (:mod:`o2m.convert.contact`); ElasticFoundationForce
+  is listed as skipped, and so is contact geometry no converted force uses.
 
 Actuators are added after the muscle actuators, named as in OpenSim; ``min_control`` and
 ``max_control`` become ``ctrlrange`` when both are finite.
@@ -42,7 +42,14 @@ from o2m.convert.actuators import (
 )
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.bushings import convert_bushing, measure_bushings
-from o2m.convert.contact import convert_hunt_crossley, fit_contacts, measure_contacts, skip_force, skip_unused_geometry
+from o2m.convert.contact import (
+    convert_hunt_crossley,
+    convert_smooth_sphere,
+    fit_contacts,
+    measure_contacts,
+    skip_force,
+    skip_unused_geometry,
+)
 from o2m.convert.expression_forces import convert_expression_force
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_ligament, fit_ligaments, measure_ligaments
@@ -68,7 +75,7 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "PointActuator": convert_point_actuator,
     "HuntCrossleyForce": convert_hunt_crossley,
     "ElasticFoundationForce": skip_force,
-    "SmoothSphereHalfSpaceForce": skip_force,
+    "SmoothSphereHalfSpaceForce": convert_smooth_sphere,
 })
 FORCE_TYPES = frozenset(HANDLERS)
 

@@ -46,7 +46,9 @@ _JOINT = "ball_joint"
 class BallModel:
     """The ball: mass (kg), radius (m) and the contact parameters of ball and floor (one
     ContactParameters naming both): stiffness (N/m²), dissipation (s/m), friction coefficients,
-    viscous friction (s/m) and the force's transition velocity (m/s)."""
+    viscous friction (s/m) and the force's transition velocity (m/s). ``smooth``: a
+    SmoothSphereHalfSpaceForce with these parameters and its smoothing (``hertz_smoothing`` 1/m,
+    ``hunt_crossley_smoothing`` s/m, ``constant_contact_force`` m²) instead of a HuntCrossleyForce."""
 
     mass: float = 1.0
     radius: float = 0.05
@@ -56,6 +58,10 @@ class BallModel:
     dynamic_friction: float = 0.6
     viscous_friction: float = 0.0
     transition_velocity: float = 0.1
+    smooth: bool = False
+    hertz_smoothing: float = 300.0
+    hunt_crossley_smoothing: float = 50.0
+    constant_contact_force: float = 1e-5
 
 
 def write_ball_model(path: str | Path, ball: BallModel = BallModel()) -> Path:  # noqa: B008 (frozen)
@@ -71,9 +77,19 @@ def write_ball_model(path: str | Path, ball: BallModel = BallModel()) -> Path:  
         joint.upd_coordinates(i).setName(name)
     joint.upd_coordinates(0).setDefaultLocked(True)
     model.addJoint(joint)
-    model.addContactGeometry(osim.ContactHalfSpace(osim.Vec3(0), osim.Vec3(0, 0, -math.pi / 2),
-                                                   model.getGround(), "floor"))
-    model.addContactGeometry(osim.ContactSphere(ball.radius, osim.Vec3(0), body, "ball_sphere"))
+    floor = osim.ContactHalfSpace(osim.Vec3(0), osim.Vec3(0, 0, -math.pi / 2), model.getGround(), "floor")
+    sphere = osim.ContactSphere(ball.radius, osim.Vec3(0), body, "ball_sphere")
+    model.addContactGeometry(floor)
+    model.addContactGeometry(sphere)
+    model.addForce(_smooth_force(osim, ball, sphere, floor) if ball.smooth else _hunt_crossley(osim, ball))
+    model.finalizeConnections()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    model.printToXML(str(path))
+    return path
+
+
+def _hunt_crossley(osim, ball: BallModel):
     force = osim.HuntCrossleyForce()
     force.setName("contact")
     force.addGeometry("floor")
@@ -84,12 +100,15 @@ def write_ball_model(path: str | Path, ball: BallModel = BallModel()) -> Path:  
     force.setDynamicFriction(ball.dynamic_friction)
     force.setViscousFriction(ball.viscous_friction)
     force.setTransitionVelocity(ball.transition_velocity)
-    model.addForce(force)
-    model.finalizeConnections()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    model.printToXML(str(path))
-    return path
+    return force
+
+
+def _smooth_force(osim, ball: BallModel, sphere, floor):
+    force = osim.SmoothSphereHalfSpaceForce("contact", sphere, floor)
+    for prop in ("stiffness", "dissipation", "static_friction", "dynamic_friction", "viscous_friction",
+                 "transition_velocity", "hertz_smoothing", "hunt_crossley_smoothing", "constant_contact_force"):
+        getattr(force, f"set_{prop}")(getattr(ball, prop))
+    return force
 
 
 @dataclass
@@ -202,10 +221,12 @@ def compare_drop(osim: str | Path, xml: str | Path, ball: BallModel, drop: float
 
 
 def compare_slide(osim: str | Path, xml: str | Path, ball: BallModel, speed: float, duration: float = 1.0,
-                  timestep: float | None = None) -> ContactComparison:
-    """The ball set down touching the floor with horizontal ``speed`` (m/s)."""
-    ta = opensim_trace(osim, ball.radius, speed, duration)
-    tb = mujoco_trace(xml, ball.radius, speed, duration, timestep)
+                  timestep: float | None = None, height: float | None = None) -> ContactComparison:
+    """The ball set down with its centre at ``height`` (m; default: touching the floor) with
+    horizontal ``speed`` (m/s). A smooth force already pushes at contact: set it down where it rests."""
+    h = ball.radius if height is None else height
+    ta = opensim_trace(osim, h, speed, duration)
+    tb = mujoco_trace(xml, h, speed, duration, timestep)
     vb = np.interp(ta.times, tb.times, tb.vx)
     extra = {"speed error max (m/s)": float(np.max(np.abs(vb - ta.vx))),
              "speed error rms (m/s)": float(np.sqrt(np.mean((vb - ta.vx) ** 2)))}

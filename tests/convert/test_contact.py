@@ -11,6 +11,8 @@
 * What the geometry becomes (planes face out of the half space, spheres where OpenSim has them,
   no collision by themselves), which pairs a force gets (every pair on two bodies that can move
   against each other), and what is skipped (unused geometry, ElasticFoundationForce).
+* SmoothSphereHalfSpaceForce: o2m's smooth law is OpenSim's force, and a ball dropped and slid
+  with it stays within what the report records (deepest point, restitution, stopping distance).
 * Corpus models with contact convert, load and step 1 s without NaN.
 """
 
@@ -22,11 +24,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from o2m.convert.contact import IMPACT_PEAK, IMPACT_RESTITUTION, SLIDE_DISTANCE
+from o2m.convert.contact import FALL_DEEPEST, IMPACT_PEAK, IMPACT_RESTITUTION, SLIDE_DISTANCE
 from o2m.convert.contact_fit import SLIDE_SPEED, HuntCrossley, Surface, fit_linear, sliding_friction
+from o2m.convert.contact_smooth import SmoothHuntCrossley
 from o2m.convert.converter import ConvertOptions, convert
 from o2m.osim import runtime
-from o2m.validate.contact import BallModel, compare_drop, compare_slide, write_ball_model
+from o2m.validate.contact import STOPPED, BallModel, compare_drop, compare_slide, write_ball_model
 from tests.helpers import model_file
 
 FAST = ConvertOptions(quick=True, fit_mechanics=False, fit_wraps=False)
@@ -43,8 +46,21 @@ def ball(tmp_path_factory):
     return osim, convert(osim, folder / "out", FAST)
 
 
-def _recorded(conv, what: str) -> float:
-    hits = [a for a in conv.report.approximations if a.element == "HuntCrossleyForce" and a.what == what]
+#: A heavy body on a soft smooth contact (a foot sphere of a Moco gait model: stiffness 1e6, 3 cm).
+SMOOTH_BALLS = (BallModel(smooth=True, viscous_friction=0.2),
+                BallModel(smooth=True, mass=12.0, radius=0.03, stiffness=1e6))
+
+
+@pytest.fixture(scope="module", params=range(len(SMOOTH_BALLS)))
+def smooth_ball(request, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("smooth")
+    ball = SMOOTH_BALLS[request.param]
+    osim = write_ball_model(folder / "ball.osim", ball)
+    return ball, osim, convert(osim, folder / "out", FAST)
+
+
+def _recorded(conv, what: str, element: str = "HuntCrossleyForce") -> float:
+    hits = [a for a in conv.report.approximations if a.element == element and a.what == what]
     assert len(hits) == 1, what
     return hits[0].max_error
 
@@ -191,3 +207,65 @@ def test_corpus_models_step(tmp_path, name):
     assert m.npair > 0 and touched > 0
     assert np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()
     assert math.isfinite(float(np.max(np.abs(d.qacc))))
+
+
+# -- SmoothSphereHalfSpaceForce -------------------------------------------------------------------
+def _smooth_law(ball: BallModel) -> SmoothHuntCrossley:
+    surface = Surface(ball.stiffness, ball.dissipation, ball.static_friction, ball.dynamic_friction,
+                      ball.viscous_friction)
+    return SmoothHuntCrossley(**vars(HuntCrossley.combine(surface, surface, ball.radius, ball.transition_velocity)),
+                              hertz_smoothing=ball.hertz_smoothing,
+                              hunt_crossley_smoothing=ball.hunt_crossley_smoothing,
+                              constant_contact_force=ball.constant_contact_force)
+
+
+def test_smooth_law_is_opensims(tmp_path):
+    """o2m's smooth law against OpenSim's force, outside the surface (where it already pushes),
+    at it and inside, approaching and leaving."""
+    osim = runtime.opensim()
+    ball = SMOOTH_BALLS[0]
+    model = osim.Model(str(write_ball_model(tmp_path / "smooth.osim", ball)))
+    force = model.getForceSet().get("contact")
+    state = model.initSystem()
+    law = _smooth_law(ball)
+    labels = [force.getRecordLabels().get(i) for i in range(force.getRecordLabels().size())]
+    fx, fy = labels.index("contact.Sphere.force.X"), labels.index("contact.Sphere.force.Y")
+    coords = model.getCoordinateSet()
+    for x in (-5e-3, -1e-3, 0.0, 1e-3, 4e-3):
+        for xdot in (-0.5, 0.0, 0.3):
+            for slip in (0.0, 0.01, 0.05, 1.0):
+                coords.get("ball_ty").setValue(state, ball.radius - x)
+                coords.get("ball_ty").setSpeedValue(state, -xdot)
+                coords.get("ball_tx").setSpeedValue(state, slip)
+                model.realizeDynamics(state)
+                values = force.getRecordValues(state)
+                f = float(law.force(x, xdot))
+                assert values.get(fy) == pytest.approx(f, rel=1e-9)
+                assert values.get(fx) == pytest.approx(-float(law.friction(f, slip)), rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("drop", DROPS)
+def test_smooth_drop_within_recorded_errors(smooth_ball, drop):
+    ball, osim, conv = smooth_ball
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert m.npair == 1 and not conv.report.skipped
+    c = compare_drop(osim, conv.xml, ball, drop)
+    assert abs(c.error("peak_penetration")) <= _recorded(conv, FALL_DEEPEST, "SmoothSphereHalfSpaceForce") / 1e3, \
+        c.summary()
+    assert abs(c.error("restitution")) <= _recorded(conv, IMPACT_RESTITUTION, "SmoothSphereHalfSpaceForce"), \
+        c.summary()
+
+
+def test_smooth_slide_within_recorded_error(smooth_ball):
+    """Set down where the smooth law rests (a light ball above the floor, a heavy one in it). The
+    report measures MuJoCo against o2m's smooth law; OpenSim's slide is that law's within 0.1 %,
+    and MuJoCo is within the recorded error of the law."""
+    ball, osim, conv = smooth_ball
+    law = _smooth_law(ball)
+    c = compare_slide(osim, conv.xml, ball, SLIDE_SPEED, height=ball.radius - law.resting(ball.mass * 9.80665))
+    expected = law.slide(ball.mass, SLIDE_SPEED, 9.80665).distance
+    assert abs(c.opensim["stop_distance"] / expected - 1) < 1e-3, c.summary()
+    recorded = _recorded(conv, SLIDE_DISTANCE, "SmoothSphereHalfSpaceForce") / 100 * expected
+    step = mujoco.MjModel.from_xml_path(str(conv.xml)).opt.timestep
+    resolution = STOPPED * SLIDE_SPEED * step  # the stop is found to within one MuJoCo step
+    assert abs(c.mujoco["stop_distance"] - expected) <= recorded + resolution, c.summary()
