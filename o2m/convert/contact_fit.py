@@ -201,9 +201,9 @@ def _hertz_impact(gamma: float, weight: float = 0.0) -> Impact:
 
 
 @cache
-def _hertz_slide(law: HuntCrossley, mass: float, speed: float, gravity: float) -> Slide:
-    """Normal (penetration z) and sliding (x) motion under Simbody's law; Simbody's friction scales
-    with the unclamped normal force f."""
+def _hertz_slide(law: HuntCrossley, mass: float, speed: float, gravity: float, start: float = 0.0) -> Slide:
+    """Normal (penetration z, from ``start`` m) and sliding (x) motion under Simbody's law;
+    Simbody's friction scales with the unclamped normal force f."""
     def rhs(t, y):
         z, zd, x, xd = y
         f = law.unclamped(z, zd)
@@ -213,7 +213,7 @@ def _hertz_slide(law: HuntCrossley, mass: float, speed: float, gravity: float) -
         return y[3] - STOPPED * speed
     stopped.terminal, stopped.direction = True, -1.0
     t_max = 10.0 * speed / (max(law.dynamic_friction, 1e-3) * gravity) + 1.0
-    sol = solve_ivp(rhs, (0.0, t_max), [0.0, 0.0, 0.0, speed], events=stopped, rtol=1e-9, atol=1e-12,
+    sol = solve_ivp(rhs, (0.0, t_max), [start, 0.0, 0.0, speed], events=stopped, rtol=1e-9, atol=1e-12,
                     max_step=1e-3)
     if not sol.t_events[0].size:
         return Slide(math.inf, math.inf)

@@ -39,10 +39,10 @@ from o2m.convert.contact_fit import (
     REFERENCE_SPEED,
     SLIDE_SPEED,
     SPEEDS,
-    STOPPED,
     HuntCrossley,
     LinearContact,
     Slide,
+    _hertz_slide,
     _linear_impact,
     _mujoco_slide,
     _probe,
@@ -98,7 +98,7 @@ class SmoothHuntCrossley(HuntCrossley):
 
     def slide(self, mass: float, speed: float, gravity: float) -> Slide:
         """As :meth:`HuntCrossley.slide`, set down where the body rests."""
-        return _smooth_slide(self, mass, speed, gravity)
+        return _hertz_slide(self, mass, speed, gravity, self.resting(mass * gravity))
 
 
 @dataclass(frozen=True)
@@ -126,24 +126,6 @@ def _smooth_fall(law: SmoothHuntCrossley, mass: float, speed: float, gravity: fl
     t_end = float(sol.t_events[0][0]) if sol.t_events[0].size else t_max
     deepest = float(np.max(sol.sol(np.linspace(0.0, t_end, 4001))[0]))
     return Fall(deepest, float(-sol.y_events[0][0][1]) / speed if sol.t_events[0].size else 0.0)
-
-
-@cache
-def _smooth_slide(law: SmoothHuntCrossley, mass: float, speed: float, gravity: float) -> Slide:
-    def rhs(t, y):
-        z, zd, x, xd = y
-        f = law.unclamped(z, zd)
-        return [zd, gravity - f / mass, xd, -float(law.friction(f, abs(xd))) * np.sign(xd) / mass]
-
-    def stopped(t, y):
-        return y[3] - STOPPED * speed
-    stopped.terminal, stopped.direction = True, -1.0
-    t_max = 10.0 * speed / (max(law.dynamic_friction, 1e-3) * gravity) + 1.0
-    sol = solve_ivp(rhs, (0.0, t_max), [law.resting(mass * gravity), 0.0, 0.0, speed], events=stopped,
-                    rtol=1e-9, atol=1e-12, max_step=1e-3)
-    if not sol.t_events[0].size:
-        return Slide(math.inf, math.inf)
-    return Slide(float(sol.y_events[0][0][2]), float(sol.t_events[0][0]))
 
 
 def fit_smooth(law: SmoothHuntCrossley, mass: float, gravity: float, timestep: float,
