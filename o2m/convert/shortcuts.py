@@ -24,8 +24,9 @@ The rule applies (:func:`shorten_chains`) where all of these hold:
   joints), so the model gets no degree of freedom more.
 
 The new joint keeps the old joint's name and element (errors and the report name it); its slides
-are ``<joint>_translation1..3`` (``o2m.convert.builder`` names non-coordinate axes so), and the
-old joint's coordinates, all dependent, get no MuJoCo joint. Units: metres, radians; OpenSim's
+are MuJoCo joints ``<joint>_shortcut1..3`` (not ``<joint>_translation1``: that would name an
+OpenSim transform axis, whose value they are not), and the old joint's coordinates, all
+dependent, get no MuJoCo joint. Units: metres, radians; OpenSim's
 frames (Y-up).
 """
 
@@ -167,7 +168,7 @@ def shortcut_joint(skel: Skeleton, drivers: dict[str, Driver], base: str, chain:
         return None
     offset = centre - kept.T @ (kept @ centre)  # the locus's constant part, across the kept directions
     origins = ChainOrigins(chain, drivers, defaults)
-    slides = [TransformAxis(f"translation{k + 1}", "translation", u, base, ChainTranslation(origins, u, offset),
+    slides = [TransformAxis(f"shortcut{k + 1}", "translation", u, base, ChainTranslation(origins, u, offset),
                             joint.element)
               for k, u in enumerate(kept)]
     if any(fit_polynomial(ax.function, lo, hi, coord.default, degree=4, exact_at_x0=True).max_error
