@@ -13,8 +13,9 @@ subtree just sit on a shorter chain, so every Jacobian below B runs over fewer d
 The rule applies (:func:`shorten_chains`) where all of these hold:
 
 * every moving axis of B's joint and of the joints above it up to A is driven by the same
-  independent coordinate e, and none of B's joint's coordinates is independent (its MuJoCo joint
-  would go away); A is the first ancestor whose own joint is not moved by e alone;
+  independent coordinate e, and none of B's joint's coordinates is independent or named by a
+  force (its MuJoCo joint goes away); A is the first ancestor whose own joint is not moved by
+  e alone;
 * the chain above B has at least one moving joint (else nothing gets shorter);
 * B's orientation in A is constant to :data:`ROTATION_TOLERANCE` over e's range, widened by
   :data:`CHECK_WIDENING` of its width on each side;
@@ -128,6 +129,16 @@ def _moving_count(skel: Skeleton, drivers: dict[str, Driver], joint: Joint) -> i
     return sum(not is_fixed(skel, drivers, ax) for ax in joint.rotations + joint.translations)
 
 
+def _named_by_forces(skel: Skeleton, names: set[str]) -> bool:
+    """Whether an element of the model's forces names one of the coordinates ``names`` (a
+    CoordinateLimitForce, an actuator, a moving or conditional path point): it would need the
+    coordinate's MuJoCo joint, which a shortcut removes."""
+    if skel.document is None:
+        return False
+    return any((el.text or "").strip() in names for forces in skel.document.model.iter("ForceSet")
+               for el in forces.iter() if isinstance(el.tag, str))
+
+
 def _chain_above(skel: Skeleton, drivers: dict[str, Driver], by_child: dict[str, Joint],
                  joint: Joint) -> tuple[str, list[Joint]] | None:
     """(e, the joints from A down to ``joint``) when the rule's first two conditions hold, else None."""
@@ -136,7 +147,7 @@ def _chain_above(skel: Skeleton, drivers: dict[str, Driver], by_child: dict[str,
         return None
     (base,) = bases
     own = [ax.coordinate for ax in joint.rotations + joint.translations if not is_fixed(skel, drivers, ax)]
-    if any(drivers[c].base == c for c in own):
+    if any(drivers[c].base == c for c in own) or _named_by_forces(skel, set(own)):
         return None
     chain = [joint]
     while chain[-1].parent in by_child and _moving_bases(skel, drivers, by_child[chain[-1].parent]) == {base}:

@@ -15,8 +15,13 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from lxml import etree
 
 from o2m.convert.converter import convert
+from o2m.convert.coordinates import coordinate_drivers
+from o2m.convert.shortcuts import shorten_chains
+from o2m.osim.document import load_document
+from o2m.osim.skeleton import read_skeleton
 from o2m.validate.kinematics import compare_kinematics
 from tests.convert.test_joint_types import (
     IDENTITY,
@@ -134,3 +139,20 @@ def test_no_shortcut_where_the_chain_follows_two_coordinates(tmp_path):
     scapphant = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "scapphant")
     assert model.body(int(model.body_parentid[scapphant])).name == "scapula"
     assert _chain_dofs(model, "arm") == 2 + 2 + 3 + 3 + 1
+
+
+def test_no_shortcut_where_a_force_names_the_removed_coordinates(tmp_path):
+    """A CoordinateActuator on one of scapphant's (dependent) coordinates needs its MuJoCo joint."""
+    path = Path(shoulder(tmp_path))
+    assert shorten_chains(*_skeleton(path))[1]
+    tree = etree.parse(str(path))
+    (objects,) = tree.getroot().xpath("Model/ForceSet/objects")
+    objects.append(etree.fromstring('<CoordinateActuator name="turn"><coordinate>uac1</coordinate>'
+                                    "<optimal_force>1</optimal_force></CoordinateActuator>"))
+    tree.write(str(path), xml_declaration=True, encoding="UTF-8")
+    assert shorten_chains(*_skeleton(path))[1] == []
+
+
+def _skeleton(path: Path):
+    skel = read_skeleton(load_document(path))
+    return skel, coordinate_drivers(skel)
