@@ -23,6 +23,9 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.osim.skeleton` for the
   parent frame's axes come first in a CustomJoint, so the two compose as one joint. The report's
   notes name each such body.
 * CoordinateCouplerConstraints become joint equalities the same way.
+* A body that only translates relative to an ancestor as one coordinate moves (its chain's
+  rotations cancel) hangs from that ancestor by slides of the coordinate
+  (:mod:`o2m.convert.shortcuts`); the bodies in between keep their joints.
 * Joints added by other builders (path-point carriers, :mod:`o2m.convert.carriers`) can be
   planned the same way (:meth:`MjcfBuilder.plan_extra_couplings`); every coupling's approximation
   records the errors of its value and of its derivative (d joint / d coordinate).
@@ -73,6 +76,7 @@ from o2m.convert.inertials import (
 )
 from o2m.convert.polyfit import FitError
 from o2m.convert.records import Approximation, BuildResult, JointRecord
+from o2m.convert.shortcuts import shorten_chains
 from o2m.mj import mjcf_text
 from o2m.osim.skeleton import Joint, Skeleton, TransformAxis
 from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat
@@ -99,7 +103,12 @@ def _rest(fn, q: np.ndarray) -> np.ndarray:
 class MjcfBuilder:
     """Builds an ``MjSpec`` from a skeleton; :func:`o2m.convert.visuals.add_geometry` adds its geometry after."""
 
-    def __init__(self, skel: Skeleton, *, plan_couplings: bool = True):
+    def __init__(self, skel: Skeleton, *, plan_couplings: bool = True, shortcuts: bool = True):
+        #: Notes for the report on chains shortened (:func:`o2m.convert.shortcuts.shorten_chains`).
+        self.shortcut_notes: list[str] = []
+        if shortcuts:
+            skel, self.shortcut_notes = shorten_chains(skel, coordinate_drivers(skel))
+        #: The skeleton as built: ``skel`` with its chain shortcuts, if any.
         self.skel = skel
         #: Whether skeleton couplings get extra joints (:meth:`_plan_couplings`); else plain quartics.
         self.plan_couplings = plan_couplings
@@ -112,6 +121,7 @@ class MjcfBuilder:
         self.doc = skel.document
         self.spec = mujoco.MjSpec()
         self.result = BuildResult(self.spec)
+        self.result.notes.extend(self.shortcut_notes)
         self.drivers = coordinate_drivers(skel)
         self.ref = {name: float(np.asarray(d.fn(np.array([skel.coordinates[d.base].default])))[0])
                     for name, d in self.drivers.items()}

@@ -82,6 +82,10 @@ class ConvertOptions:
             in its coordinates may have and still convert to fixed tendons or a joint spring
             (:mod:`o2m.convert.bushings`). None, the default, converts only linear ones (exact);
             the report records each approximated bushing's measured error.
+        chain_shortcuts: hang a body that only translates relative to an ancestor as one
+            coordinate moves (its chain's rotations cancel: MoBL-ARMS's scapphant) from that
+            ancestor by slides of the coordinate (:mod:`o2m.convert.shortcuts`): the same poses
+            within the skeleton couplings' target, fewer joints above its subtree.
     """
 
     fit_mechanics: bool = True
@@ -93,6 +97,7 @@ class ConvertOptions:
     plain_quartics: bool = False
     carrier_tolerance: float = CARRIER_AXIS_TOLERANCE
     bushing_tolerance: float | None = None
+    chain_shortcuts: bool = True
 
     def __post_init__(self):
         if self.path_forces not in PATH_FORCE_MODES:
@@ -117,7 +122,7 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
     stem = name or osim.stem
     doc = load_document(osim)
     skel = read_skeleton(doc)
-    builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics)
+    builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics, shortcuts=options.chain_shortcuts)
     result = builder.build()
     add_constraints(builder)
     massless = check_massless(skel, builder, osim)

@@ -927,7 +927,8 @@ def test_massless_intermediate_bodies(tmp_path):
 # ---------------------------------------------------------------------------------------------
 
 def test_opensim3_document(tmp_path):
-    """A 3.x document (MoBL-ARMS, Version 30000) is upgraded, converted and exact."""
+    """A 3.x document (MoBL-ARMS, Version 30000) is upgraded and converted: orientations exact,
+    positions within the quartics of its shoulder's chain shortcut (:mod:`o2m.convert.shortcuts`)."""
     require_models()
     fetched = models.fetch_model_with_geometry("mobl_arms_no_wrap", progress=False)
     conv = convert(fetched.osim, tmp_path / "out", convert_options(), geometry_dirs=[fetched.geometry_dir])
@@ -939,8 +940,13 @@ def test_opensim3_document(tmp_path):
     k = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_KEY, "default-pose")
     assert k >= 0
     np.testing.assert_allclose(mj.key_qpos[k], mj.qpos0, rtol=0, atol=0)
-    # Exact kinematics against OpenSim (couplers, locked coordinates, 3.x upgrade).
+    # Kinematics against OpenSim (couplers, locked coordinates, 3.x upgrade): the couplers are
+    # linear, so only the slides that move scapphant from the thorax are approximated
+    slides = [a for a in conv.report.approximations if a.element == "CustomJoint" and a.units == "m"]
+    assert sorted(a.joint for a in slides) == [f"unrothum_shortcut{k}" for k in (1, 2, 3)]
+    bound = sum(a.max_error for a in slides)
     rep = compare_kinematics(fetched.osim, conv.xml, n_poses=10)
     assert rep.n_poses == 10 and rep.missing_bodies == []
-    assert rep.max_pos_error <= EXACT and rep.max_ang_error <= EXACT and rep.com_max_error <= EXACT, rep.summary()
+    assert rep.max_ang_error <= EXACT, rep.summary()
+    assert rep.max_pos_error <= bound + EXACT and rep.com_max_error <= bound + EXACT, rep.summary()
     assert abs(rep.mass_mujoco - rep.mass_opensim) <= EXACT

@@ -58,13 +58,32 @@ def kinematics(converted):
     return rep
 
 
+def _moved_by_shortcuts(m: mujoco.MjModel) -> set[str]:
+    """Bodies a chain shortcut's slides move (``<joint>_shortcut<k>``, :mod:`o2m.convert.shortcuts`):
+    OpenSim has no transform axis whose value they carry."""
+    tops = {int(m.jnt_bodyid[j]) for j in range(m.njnt) if "_shortcut" in m.joint(j).name}
+    moved = set()
+    for b in range(1, m.nbody):
+        a = b
+        while a > 0 and a not in tops:
+            a = int(m.body_parentid[a])
+        if a > 0:
+            moved.add(m.body(b).name)
+    return moved
+
+
 def test_structure_is_exact(converted):
+    """Every body placed by OpenSim's own coordinate and axis values is exact; bodies a chain
+    shortcut moves are checked against their fits by the 0.1 mm test."""
     name, osim, conv = converted
     rep = compare_kinematics(osim, conv.xml, n_poses=POSES, seed=1, dependents="opensim")
     assert rep.n_poses == POSES
     assert not rep.missing_bodies
-    assert rep.max_pos_error < EXACT_TOL, rep.summary()
-    assert rep.max_ang_error < EXACT_TOL, rep.summary()
+    moved = _moved_by_shortcuts(mujoco.MjModel.from_xml_path(str(conv.xml)))
+    assert bool(moved) == name.startswith("mobl_arms"), sorted(moved)  # its shoulder rhythm
+    for body, err in rep.bodies.items():
+        if body not in moved:
+            assert err.max_pos < EXACT_TOL and err.max_ang < EXACT_TOL, f"{name}/{body}\n{rep.summary()}"
 
 
 def test_every_body_within_0_1_mm(converted, kinematics):
@@ -80,10 +99,13 @@ def test_every_body_within_0_05_deg(converted, kinematics):
 
 
 def test_mass_and_centre_of_mass(converted):
+    """Mass exact; centre of mass exact from OpenSim's own values, or (where a chain shortcut
+    moves bodies, which OpenSim has no values for) within the bodies' 0.1 mm."""
     name, osim, conv = converted
-    rep = compare_kinematics(osim, conv.xml, n_poses=20, seed=2, dependents="opensim")
+    moved = _moved_by_shortcuts(mujoco.MjModel.from_xml_path(str(conv.xml)))
+    rep = compare_kinematics(osim, conv.xml, n_poses=20, seed=2, dependents="mujoco" if moved else "opensim")
     assert rep.mass_mujoco == pytest.approx(rep.mass_opensim, rel=1e-7, abs=1e-7)
-    assert rep.com_max_error < EXACT_TOL
+    assert rep.com_max_error < (POS_TOL if moved else EXACT_TOL), rep.summary()
 
 
 def test_report_lists_every_element(converted):
