@@ -78,13 +78,18 @@ COUPLING_SPLIT_GAIN = 0.6
 COUPLING_ARMATURE = 1.0
 
 #: Most coupled axes :func:`plan_group` plans together for path-point carriers
-#: (:func:`chunks_by_key`): its cost grows about with the cube of their number (measured, CPU, on
-#: sine-shaped slides: 0.9 s for 2 axes, 7.3 s for 4, 17 s for 8, over 10 minutes for 16), so a
-#: coordinate moving more carrier slides (a model with hundreds of paths) has them planned in
-#: chunks of at most this many, each chunk with inner joints of its own, and the conversion time
-#: stays linear in the number of paths. 8 is the largest group of the corpus (Hamner's knees),
-#: whose plans stay as they were.
+#: (:func:`chunks_by_key`): 8, the largest group of the corpus (Hamner's knees), whose plans stay
+#: as they were. A coordinate moving more carrier slides (a model with hundreds of paths) has
+#: them planned in chunks of at most :data:`CARRIER_SPLIT_CHUNK`, each chunk with inner joints of
+#: its own.
 CARRIER_CHUNK = 8
+#: Most axes of one chunk when a coordinate's carrier axes are more than :data:`CARRIER_CHUNK`.
+#: A plan's cost grows with the square of its axes (each axis that misses tries its own moves,
+#: and each try refits every axis of the plan), so the cost per axis grows with the chunk size:
+#: measured (CPU) on the 22 carrier axes of a 50-path synthetic model (benchmarks/scaling.py),
+#: chunks of 2 axes (one carrier) 0.57 s per axis, of 4 1.7 s, of 8 3.8 s; their worst errors
+#: 0.080, 0.078 and 0.078 mm, median 0.060, 0.045 and 0.041 mm, with 33, 37 and 43 extra joints.
+CARRIER_SPLIT_CHUNK = 4
 
 #: An extra joint of a coupled axis: (name, driving joint, equality coefficients, "inner" or "outer").
 ExtraJoint = tuple[str, str, np.ndarray, str]
@@ -315,10 +320,10 @@ def plan_skeleton(axes: list[CoupledAxis], dofs: Mapping[tuple[str, str], int], 
     return planned, split_bodies
 
 
-def chunks_by_key(keys: list[object], size: int = CARRIER_CHUNK) -> list[list[int]]:
-    """Indices 0..len(keys)-1 in consecutive chunks of at most ``size`` (more only when one key
-    has more axes), the axes of one key (one body's degrees of freedom) always in one chunk, each
-    chunk in index order; one chunk of all, in order, when there are at most ``size``."""
+def chunks_by_key(keys: list[object], size: int = CARRIER_CHUNK, split: int = CARRIER_SPLIT_CHUNK) -> list[list[int]]:
+    """Indices 0..len(keys)-1: one chunk of all, in order, when there are at most ``size``; else in
+    consecutive chunks of at most ``split`` (more only when one key has more axes), the axes of
+    one key (one body's degrees of freedom) always in one chunk, each chunk in index order."""
     if len(keys) <= size:
         return [list(range(len(keys)))]
     by_key: dict[object, list[int]] = {}
@@ -326,7 +331,7 @@ def chunks_by_key(keys: list[object], size: int = CARRIER_CHUNK) -> list[list[in
         by_key.setdefault(key, []).append(i)
     chunks: list[list[int]] = [[]]
     for members in by_key.values():
-        if chunks[-1] and len(chunks[-1]) + len(members) > size:
+        if chunks[-1] and len(chunks[-1]) + len(members) > split:
             chunks.append([])
         chunks[-1].extend(members)
     return [sorted(c) for c in chunks if c]

@@ -392,7 +392,8 @@ class _Problem:
     def lp(self, shapes: Sequence[FloatArray], tt: FloatArray, ff: Sequence[FloatArray], dd: Sequence[FloatArray],
            ww: FloatArray, axis_uses, guard: Sequence[tuple[FloatArray, FloatArray]], polish=False):
         """Per axis: (worst error weighted by ``ww``, coefficients of the column-scaled basis,
-        column scales, cond). With ``polish``, the least-squares coefficients replace the linear
+        column scales, cond: the basis's condition number, with ``polish`` only, else nan). With
+        ``polish`` (the final fit), the least-squares coefficients replace the linear
         program's when they respect the amplitude bound and have the smaller worst error (they
         reach round-off for a function the structure represents exactly, where the LP stops at
         its tolerance). ``dd``: each axis's derivative in t (ff's units), bounded (times
@@ -428,7 +429,7 @@ class _Problem:
                 capped = np.all(np.abs(Ag @ ls - g_val) <= g_cap + COUPLING_MARGIN_SLACK * ls_err)
                 if capped and np.all(sums <= amplitude * fsa) and ls_err < float(np.max(np.abs(As @ coef - target))):
                     coef, err = ls, ls_err
-            out.append((err, coef, scale, float(np.linalg.cond(A / scale))))
+            out.append((err, coef, scale, float(np.linalg.cond(A / scale)) if polish else math.nan))
         return out
 
     def score(self, shapes, axis_uses) -> float:

@@ -135,21 +135,35 @@ class ShapeSearch:
         norms = np.maximum(np.linalg.norm(th, axis=1), 1e-300)
         H = (self.phi @ th.T) / norms  # (m, L)
         self.H, self.th, self.norms = H, th, norms
+        # axes with the same outer joints share their basis, and with the same weights its SVD
+        # (every axis's, until Lawson's reweighting): computed once, the same numbers
+        powers: dict[int, FloatArray] = {}  # inner k: its columns h_k^2..4, (m, 3)
+        bases: dict[tuple[int, ...], tuple[FloatArray, FloatArray]] = {}  # uses: (A, column scales)
+        factors: dict[tuple[tuple[int, ...], bytes], tuple[FloatArray, FloatArray, FloatArray]] = {}
         self.parts = []
         for f, u, sw in zip(self.fs, self.uses, self.sw, strict=True):
             sw = sw * self.rows
-            A = np.hstack([self.V] + [np.stack([H[:, k] ** j for j in (2, 3, 4)], axis=1) for k in u])
-            scale = np.maximum(np.linalg.norm(A, axis=0), 1e-300)
-            U, S, Vt = np.linalg.svd(A * sw[:, None] / scale, full_matrices=False)
-            r = int(np.sum(S > S[0] * 1e-12))
-            U, S, Vt = U[:, :r], S[:r], Vt[:r]
+            uses = tuple(u)
+            if uses not in bases:
+                for k in u:
+                    if k not in powers:
+                        powers[k] = np.stack([H[:, k] ** j for j in (2, 3, 4)], axis=1)
+                A = np.hstack([self.V] + [powers[k] for k in u])
+                bases[uses] = (A, np.maximum(np.linalg.norm(A, axis=0), 1e-300))
+            A, scale = bases[uses]
+            weighted = (uses, sw.tobytes())
+            if weighted not in factors:
+                U, S, Vt = np.linalg.svd(A * sw[:, None] / scale, full_matrices=False)
+                r = int(np.sum(S > S[0] * 1e-12))
+                factors[weighted] = (U[:, :r], S[:r], Vt[:r])
+            U, S, Vt = factors[weighted]
             c = (Vt.T @ ((U.T @ (sw * f)) / S)) / scale  # coefficients of the unscaled columns
-            self.parts.append((A, U, S, Vt, scale, c, sw * (A @ c - f)))
+            self.parts.append((A, U, S, Vt, scale, c, sw * (A @ c - f), sw))
         self._key = key
 
     def residual(self, flat: FloatArray) -> FloatArray:
         self._solve(flat)
-        return np.concatenate([p[-1] for p in self.parts])  # a new array: the caller may change it
+        return np.concatenate([p[6] for p in self.parts])  # a new array: the caller may change it
 
     def errors(self, flat: FloatArray) -> list[FloatArray]:
         """Each axis's residual A c - f, weighted by the samples' fixed weights only."""
@@ -161,21 +175,26 @@ class ShapeSearch:
         P⊥ dA c - A⁺ᵀ dAᵀ r (r = A c - f), for the weighted, column-scaled basis."""
         self._solve(flat)
         L = self.H.shape[1]
+        # per inner joint k, shared by the axes using it: d h_k / d θ_k (h = φ θ / |θ|, (m, 4))
+        # and h_k^(j-1), j = 2..4
+        dh_dth, h_powers = {}, {}
+        for k in {k for u in self.uses for k in u}:
+            h = self.H[:, k]
+            unit = self.th[k] / self.norms[k]
+            dh_dth[k] = (self.phi - h[:, None] * unit[None, :]) / self.norms[k]
+            h_powers[k] = [h ** (j - 1) for j in (2, 3, 4)]
         blocks = []
-        for (_, U, S, Vt, scale, c, res), u, sw in zip(self.parts, self.uses, self.sw, strict=True):
-            sw = sw * self.rows
+        for (_, U, S, Vt, scale, c, res, sw), u in zip(self.parts, self.uses, strict=True):
             J = np.zeros((sw.size, 4 * L))
             for i, k in enumerate(u):
                 cols = slice(4 + 3 * i, 7 + 3 * i)
                 b = c[cols]
-                h = self.H[:, k]
-                unit = self.th[k] / self.norms[k]
-                dh_dth = (self.phi - h[:, None] * unit[None, :]) / self.norms[k]  # h = φ θ / |θ|, (m, 4)
-                dcol = np.stack([sw * j * h ** (j - 1) for j in (2, 3, 4)], axis=1)  # d(weighted column)/dh
-                g = (dcol @ b)[:, None] * dh_dth  # dA c, (m, 4)
+                dcol = np.stack([sw * j * hp for j, hp in zip((2, 3, 4), h_powers[k], strict=True)],
+                                axis=1)  # d(weighted column)/dh
+                g = (dcol @ b)[:, None] * dh_dth[k]  # dA c, (m, 4)
                 first = g - U @ (U.T @ g)
                 # A⁺ᵀ dAᵀ r: dA has nonzero columns only at this outer's 3 columns
-                dAt_r = (dcol * res[:, None]).T @ dh_dth / scale[cols][:, None]  # (3, 4)
+                dAt_r = (dcol * res[:, None]).T @ dh_dth[k] / scale[cols][:, None]  # (3, 4)
                 second = U @ ((Vt[:, cols] @ dAt_r) / S[:, None])
                 J[:, 4 * k: 4 * k + 4] += first - second
             blocks.append(J)

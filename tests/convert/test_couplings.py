@@ -397,11 +397,54 @@ def test_five_coupled_axes_of_two_bodies_reach_the_skeleton_budget(x0):
 
 
 def test_carrier_groups_are_planned_in_chunks_that_keep_a_body_together():
-    from o2m.convert.coupling_plan import CARRIER_CHUNK, chunks_by_key
+    from o2m.convert.coupling_plan import CARRIER_CHUNK, CARRIER_SPLIT_CHUNK, chunks_by_key
 
     assert chunks_by_key(["a", "b", "a"], size=8) == [[0, 1, 2]]  # small groups: one chunk, as before
+    assert chunks_by_key(list(range(CARRIER_CHUNK))) == [list(range(CARRIER_CHUNK))]
     keys = [k // 2 for k in range(2 * CARRIER_CHUNK + 3)]  # two axes per carrier body
     chunks = chunks_by_key(keys)
     assert sorted(i for c in chunks for i in c) == list(range(len(keys)))
-    assert all(len(c) <= CARRIER_CHUNK for c in chunks) and len(chunks) == 3
+    assert all(len(c) <= CARRIER_SPLIT_CHUNK for c in chunks)
+    assert len(chunks) == -(-(len(keys) + 1) // CARRIER_SPLIT_CHUNK)  # full chunks of whole bodies
     assert all(len({keys[i] for i in c} & {keys[i] for i in d}) == 0 for c in chunks for d in chunks if c is not d)
+
+
+def _missing_fit(fns, lo, hi, x0, *, targets, uses, hosts, **_):
+    """A stand-in for fit_couplings: every axis misses its target by 2 whatever its joints (so
+    plan_group tries every move), the joints as asked."""
+    from o2m.convert.couplings import AxisFit, CouplingFit
+
+    axes = tuple(AxisFit(np.zeros(5), tuple((k, np.zeros(5)) for k in u), 2.0 * tg, tg, 2.0 * tg, tg, 0.0)
+                 for u, tg in zip(uses, targets, strict=True))
+    return CouplingFit(np.zeros((len(hosts), 5)), tuple(hosts), np.zeros((len(hosts), 4)), axes, 1.0, lo, hi, x0)
+
+
+def _axis_fits_per_axis(monkeypatch, carriers: int) -> tuple[float, int]:
+    """Plan ``carriers`` two-slide carriers of one coordinate as the builder does (chunks_by_key,
+    then plan_group per chunk, fit_couplings replaced by :func:`_missing_fit`): the axes fitted
+    per axis (a fit's work grows with its axes), and the most axes of one fit."""
+    from o2m.convert import coupling_plan
+    from o2m.convert.coupling_plan import CoupledAxis, chunks_by_key, plan_group
+
+    fitted_axes: list[int] = []
+    monkeypatch.setattr(coupling_plan, "fit_couplings",
+                        lambda fns, *a, **k: fitted_axes.append(len(fns)) or _missing_fit(fns, *a, **k))
+    group = [CoupledAxis(f"c{k // 2}_{'xy'[k % 2]}", f"c{k // 2}", "slide", "knee", np.sin)
+             for k in range(2 * carriers)]
+    keys = [a.body for a in group]
+    for chunk in chunks_by_key(keys):
+        plan_group([group[i] for i in chunk], [keys[i] for i in chunk], {key: 4 for key in keys}, -1.0, 1.0, 0.0,
+                   [1.0] * len(chunk), [1e-5] * len(chunk), cheaper_too=True)
+    return sum(fitted_axes) / len(group), max(fitted_axes)
+
+
+def test_carrier_fitting_work_per_axis_does_not_grow_with_the_group(monkeypatch):
+    """However many carriers share a coordinate, each carrier axis costs the same number of fitted
+    axes: the chunks stay small (each axis that misses tries up to two moves, each a fit of its
+    whole chunk), so conversion time grows linearly with the number of paths."""
+    from o2m.convert.coupling_plan import CARRIER_SPLIT_CHUNK
+
+    work = {n: _axis_fits_per_axis(monkeypatch, n) for n in (8, 32, 128)}
+    assert all(largest <= CARRIER_SPLIT_CHUNK for _, largest in work.values()), work
+    assert work[8][0] == work[32][0] == work[128][0], work
+    assert work[128][0] <= 2 + 2 * CARRIER_SPLIT_CHUNK, work  # the quartics, the first inner, two tries per axis
