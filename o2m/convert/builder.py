@@ -360,9 +360,11 @@ class MjcfBuilder:
         """Plan couplings beyond a quartic for axes that callers outside this class add (path-point
         carriers): the axes ``group`` of one coordinate, all equally heavy, axis i's extra joints
         counted against ``room[keys[i]]``, fitted to ``targets`` and ``slope_targets`` as
-        :func:`~o2m.convert.coupling_plan.plan_group` does, in chunks of at most
-        :data:`~o2m.convert.coupling_plan.CARRIER_CHUNK` axes (:func:`~o2m.convert.coupling_plan.chunks_by_key`;
-        one plan's cost grows with the cube of its axes). Each joint then follows its plan when
+        :func:`~o2m.convert.coupling_plan.plan_group` does: a group of up to
+        :data:`~o2m.convert.coupling_plan.CARRIER_CHUNK` axes together, a larger one in chunks of at
+        most :data:`~o2m.convert.coupling_plan.CARRIER_SPLIT_CHUNK`
+        (:func:`~o2m.convert.coupling_plan.chunks_by_key`; one plan's cost grows with the square of
+        its axes). Each joint then follows its plan when
         :meth:`couple` is called with ``high_order=True`` after :meth:`register_joint`; every extra
         joint gets ``armature``. Returns each chunk's fit."""
         base = group[0].base
