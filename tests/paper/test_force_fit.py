@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from o2m.mj.muscle import integrate_activations
 from o2m.paper.force_fit import ForceFit, ForceSamples, MuscleForceFit, _force, _start, fit_forces, pulling_force
 
 #: A muscle on a fixed tendon of a slide joint, so that the actuator length is the joint position.
@@ -26,9 +27,9 @@ def _model() -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(SLIDER)
 
 
-def _known() -> MuscleForceFit:
+def _known(dynprm: list[float] | None = None) -> MuscleForceFit:
     return MuscleForceFit("m", 500.0, [0.15, 0.35], [0.55, 1.35], 0.35, 1.7, 2.5, 1.4, 1.1, 0.26,
-                          [800.0, 2e4, 5e5], 30.0, np.nan, np.nan, np.nan, np.nan)
+                          [800.0, 2e4, 5e5], 30.0, np.nan, np.nan, np.nan, np.nan, dynprm=dynprm)
 
 
 def test_applied_model_produces_the_fitted_force():
@@ -59,11 +60,11 @@ def test_pulling_force_is_what_mujoco_applies(fitted):
 def test_written_mjcf_matches_the_applied_model(tmp_path):
     src = tmp_path / "in.xml"
     src.write_text(SLIDER)
-    fit = ForceFit({"m": _known()})
+    fit = ForceFit({"m": _known([0.03, 0.09, 0.2])})
     written = mujoco.MjModel.from_xml_path(str(fit.write_mjcf(src, tmp_path / "out.xml")))
     applied = fit.apply(_model())
-    for field in ("actuator_gainprm", "actuator_biasprm", "tendon_stiffness", "tendon_stiffnesspoly",
-                  "tendon_lengthspring", "tendon_damping"):
+    for field in ("actuator_gainprm", "actuator_biasprm", "actuator_dynprm", "tendon_stiffness",
+                  "tendon_stiffnesspoly", "tendon_lengthspring", "tendon_damping"):
         np.testing.assert_allclose(getattr(written, field), getattr(applied, field), rtol=1e-12, err_msg=field)
 
 
@@ -108,3 +109,51 @@ def test_fit_needs_a_muscle_actuator():
     model = mujoco.MjModel.from_xml_string(xml)
     with pytest.raises(ValueError, match="not a muscle"):
         fit_forces(model, _samples(_known(), 100, 0), processes=1, progress=False)
+
+
+@pytest.mark.parametrize("tausmooth", [0.0, 0.3])
+def test_integrated_activations_are_what_mujoco_steps(tausmooth):
+    model = _model()
+    model.actuator_dynprm[0, :3] = [0.03, 0.09, tausmooth]
+    data = mujoco.MjData(model)
+    controls = np.random.default_rng(6).uniform(-0.2, 1.2, (300, 1))  # MuJoCo clamps them to [0, 1]
+    data.act[0] = 0.2
+    stepped = [data.act[0]]
+    for c in controls:
+        data.ctrl[0] = c[0]
+        mujoco.mj_step(model, data)
+        stepped.append(data.act[0])
+    ours = integrate_activations(controls, np.array([0.2]), model.actuator_dynprm[:, :3], model.opt.timestep)
+    np.testing.assert_allclose(ours[:, 0], stepped, rtol=0, atol=1e-12)
+
+
+def _dynamic_samples(truth: MuscleForceFit, n_traj: int, seed: int, model: mujoco.MjModel) -> ForceSamples:
+    """Trajectories of sine excitations; the force at each sample is the truth's at its own time constants,
+    the activations given are the model's (what the fit starts from)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(400) * 0.002
+    f, phase = rng.uniform(0.5, 4.0, (n_traj, 1)), rng.uniform(0, 2 * np.pi, (n_traj, 1))
+    exc = (0.5 * (1 + np.sin(2 * np.pi * f * t + phase)))[..., None]
+    controls = 0.5 * (exc[:, :-1] + exc[:, 1:])
+    a0 = np.zeros((n_traj, 1))
+    true_act = integrate_activations(controls, a0, truth.dynprm, 0.002)
+    given_act = integrate_activations(controls, a0, model.actuator_dynprm[:, :3], 0.002)
+    traj, step = np.divmod(np.arange(n_traj * 400), 400)
+    L, V = rng.uniform(0.15, 0.35, traj.size), rng.uniform(-0.6, 0.6, traj.size)
+    F = truth.force_at(L, V, true_act[traj, step, 0])
+    return ForceSamples(["m"], L[:, None], V[:, None], given_act[traj, step], F[:, None], traj, step, controls, a0,
+                        0.002)
+
+
+def test_fit_recovers_known_activation_time_constants():
+    model = _model()  # MuJoCo's default time constants, 0.01 / 0.04 s
+    truth = _known()
+    truth.dynprm = [0.03, 0.09, 0.0]
+    train, held = _dynamic_samples(truth, 6, 7, model), _dynamic_samples(truth, 2, 8, model)
+    static = fit_forces(model, train, held_out=held, processes=1, progress=False, fit_dynamics=False).muscles["m"]
+    fit = fit_forces(model, train, held_out=held, processes=1, progress=False).muscles["m"]
+    assert static.dynprm is None and static.rms > 1.0  # the curves alone cannot make up the lag (% of F0)
+    assert fit.kept and fit.rms < 0.1 and fit.rms_held_out < 0.1
+    np.testing.assert_allclose(fit.dynprm[:2], truth.dynprm[:2], rtol=0.05)
+    applied = ForceFit({"m": fit}).apply(model)
+    np.testing.assert_allclose(applied.actuator_dynprm[0, :3], fit.dynprm)
