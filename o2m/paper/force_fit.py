@@ -87,6 +87,8 @@ class ForceSamples:
         step: the sample's time step in its trajectory, (N,); with ``controls`` (the MuJoCo control
             of every step of every trajectory, (B, T - 1, M)), ``initial_activation`` ((B, M)) and
             ``timestep`` (s), the fit can integrate the activations anew for other time constants.
+        weight: optional weight of each sample's force residual per muscle, (N, M) (e.g. the
+            muscle's moment arm there, so the fit minimises the joint torque error).
     """
 
     muscles: list[str]
@@ -99,11 +101,13 @@ class ForceSamples:
     controls: np.ndarray | None = None
     initial_activation: np.ndarray | None = None
     timestep: float = 0.002
+    weight: np.ndarray | None = None
 
     def subset(self, rows: np.ndarray) -> ForceSamples:
         return ForceSamples(self.muscles, self.length[rows], self.velocity[rows], self.activation[rows],
                             self.force[rows], self.trajectory[rows], None if self.step is None else self.step[rows],
-                            self.controls, self.initial_activation, self.timestep)
+                            self.controls, self.initial_activation, self.timestep,
+                            None if self.weight is None else self.weight[rows])
 
 
 def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.ndarray, activations: np.ndarray,
@@ -303,6 +307,7 @@ class _Task:
     dyn0: np.ndarray | None = None  # the model's (tau_act, tau_deact, tausmooth), s
     train_dynamics: _Dynamics | None = None  # given, the time constants are fitted too
     held_dynamics: _Dynamics | None = None
+    weight: np.ndarray | float = 1.0  # of each training residual
 
 
 def _rms(x: np.ndarray, t: _Task, data: tuple[np.ndarray, ...]) -> float:
@@ -333,7 +338,8 @@ def _fit_curves(t: _Task, x0: np.ndarray, train: tuple[np.ndarray, ...]) -> np.n
         return x0
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([(_force(x, t.f0, t.lr, L, V, A) - F) / t.f0, *_static_residuals(t, x, len(L))])
+        return np.concatenate([t.weight * (_force(x, t.f0, t.lr, L, V, A) - F) / t.f0,
+                               *_static_residuals(t, x, len(L))])
 
     lo, hi = _bounds(t.lr)
     return least_squares(residuals, x0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=t.max_nfev).x
@@ -361,7 +367,7 @@ def _fit_with_dynamics(t: _Task, x0: np.ndarray, dyn: _Dynamics) -> tuple[np.nda
 
     def residuals(p: np.ndarray) -> np.ndarray:
         x, d = p[:n], p[n:]
-        return np.concatenate([(_force(x, t.f0, t.lr, L, V, activations(d)) - F) / t.f0,
+        return np.concatenate([t.weight * (_force(x, t.f0, t.lr, L, V, activations(d)) - F) / t.f0,
                                *_static_residuals(t, x, len(L))])
 
     lo, hi = _bounds(t.lr)
@@ -519,7 +525,8 @@ def fit_forces(model: mujoco.MjModel, train: ForceSamples, *, held_out: ForceSam
                            (train.length[:, j], train.velocity[:, j], train.activation[:, j], train.force[:, j]),
                            (held_out.length[:, j], held_out.velocity[:, j], held_out.activation[:, j],
                             held_out.force[:, j]), st, static_weight, max_nfev, model.actuator_dynprm[a, :3].copy(),
-                           _dynamics(train, j) if dynamic else None, _dynamics(held_out, j) if dynamic else None))
+                           _dynamics(train, j) if dynamic else None, _dynamics(held_out, j) if dynamic else None,
+                           1.0 if train.weight is None else train.weight[:, j]))
     fits = {f.name: f for f in map_with_progress(_fit_one, tasks, workers=processes, desc="muscle forces",
                                                  unit="muscle", progress=progress)}
     return ForceFit({t.name: fits[t.name] for t in tasks},

@@ -157,3 +157,13 @@ def test_fit_recovers_known_activation_time_constants():
     np.testing.assert_allclose(fit.dynprm[:2], truth.dynprm[:2], rtol=0.05)
     applied = ForceFit({"m": fit}).apply(model)
     np.testing.assert_allclose(applied.actuator_dynprm[0, :3], fit.dynprm)
+
+
+def test_samples_of_zero_weight_do_not_move_the_fit():
+    truth = _known()
+    train = _samples(truth, 1500, 9)
+    corrupted = np.arange(1500) % 3 == 0
+    train.force[corrupted, 0] *= 1.3
+    train.weight = np.where(corrupted, 0.0, 1.0)[:, None]
+    fit = fit_forces(_model(), train, held_out=_samples(truth, 300, 10), processes=1, progress=False).muscles["m"]
+    assert fit.kept and fit.rms_held_out < 0.05
