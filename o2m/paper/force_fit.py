@@ -55,6 +55,7 @@ from o2m.convert.muscles import fit_muscles
 from o2m.mj.muscle import active_force_length, force_velocity, integrate_activations, passive_force
 from o2m.mj.posing import joint_equality_plan
 from o2m.mj.simulate import STATE_SPEC, initial_state
+from o2m.mj.tendons import tendon_jacobian
 from o2m.parallel import map_with_progress
 
 __all__ = ["ForceFit", "MuscleForceFit", "ForceSamples", "TINY", "fit_forces", "pulling_force", "sample_states",
@@ -112,7 +113,8 @@ class ForceSamples:
 
 def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.ndarray, activations: np.ndarray,
                   forces: np.ndarray, coordinate_names: Sequence[str], muscles: Sequence[str], *,
-                  stride: int = 2, excitations: np.ndarray | None = None) -> ForceSamples:
+                  stride: int = 2, excitations: np.ndarray | None = None,
+                  weight_coordinates: Sequence[str] | None = None) -> ForceSamples:
     """MuJoCo actuator lengths and velocities at every ``stride``-th OpenSim state.
 
     Args:
@@ -125,9 +127,14 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
             MuJoCo's controls (the mean of each step's two excitations, clipped to [0, 1], as
             :func:`o2m.mj.simulate.muscle_activations` steps them) and ``activations[:, 0]`` as the
             initial activations, so :func:`fit_forces` can fit the activation time constants.
+        weight_coordinates: given (names of joints), each sample's residual weight is the norm of
+            the muscle's moment arms about them there (MuJoCo's), scaled to RMS 1 per muscle (1 for
+            a muscle with no arm about them): the fit then minimises the torque error.
     """
     data = mujoco.MjData(model)
     ids = np.array([model.actuator(m).id for m in muscles])
+    tendons = model.actuator_trnid[ids, 0]
+    dofs = [int(model.joint(c).dofadr[0]) for c in weight_coordinates or []]
     plan = joint_equality_plan(model)
     rows = []
     for b in range(coordinates.shape[0]):
@@ -139,8 +146,9 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
             mujoco.mj_setState(model, data, x, STATE_SPEC)
             mujoco.mj_fwdPosition(model, data)
             mujoco.mj_fwdVelocity(model, data)
+            arm = np.linalg.norm(tendon_jacobian(model, data)[np.ix_(tendons, dofs)], axis=1) if dofs else None
             rows.append((data.actuator_length[ids].copy(), data.actuator_velocity[ids].copy(),
-                         activations[b, k], forces[b, k], b, k))
+                         activations[b, k], forces[b, k], b, k, arm))
     if not rows:
         raise ValueError("no finite OpenSim states to sample")
     controls = initial = None
@@ -148,10 +156,15 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
         exc = np.asarray(excitations, float)
         controls = np.clip(0.5 * (exc[:, :-1] + exc[:, 1:]), 0.0, 1.0)
         initial = np.asarray(activations, float)[:, 0, :]
+    weight = None
+    if dofs:
+        arms = np.array([r[6] for r in rows])
+        rms = np.sqrt(np.mean(arms**2, axis=0))
+        weight = np.where(rms > 1e-6, arms / np.maximum(rms, 1e-12), 1.0)
     return ForceSamples(list(muscles), np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
                         np.array([r[2] for r in rows], float), np.array([r[3] for r in rows], float),
                         np.array([r[4] for r in rows]), np.array([r[5] for r in rows]), controls, initial,
-                        float(model.opt.timestep))
+                        float(model.opt.timestep), weight)
 
 
 def pulling_force(model: mujoco.MjModel, muscle: str, length, velocity, activation) -> np.ndarray:

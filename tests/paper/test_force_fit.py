@@ -7,7 +7,16 @@ import numpy as np
 import pytest
 
 from o2m.mj.muscle import integrate_activations
-from o2m.paper.force_fit import ForceFit, ForceSamples, MuscleForceFit, _force, _start, fit_forces, pulling_force
+from o2m.paper.force_fit import (
+    ForceFit,
+    ForceSamples,
+    MuscleForceFit,
+    _force,
+    _start,
+    fit_forces,
+    pulling_force,
+    sample_states,
+)
 
 #: A muscle on a fixed tendon of a slide joint, so that the actuator length is the joint position.
 SLIDER = """
@@ -167,3 +176,12 @@ def test_samples_of_zero_weight_do_not_move_the_fit():
     train.weight = np.where(corrupted, 0.0, 1.0)[:, None]
     fit = fit_forces(_model(), train, held_out=_samples(truth, 300, 10), processes=1, progress=False).muscles["m"]
     assert fit.kept and fit.rms_held_out < 0.05
+
+
+def test_sampled_weights_are_the_moment_arms_scaled_to_rms_one():
+    model = _model()  # the muscle's tendon is the slide joint itself: moment arm 1 at every pose
+    q = np.linspace(0.16, 0.34, 8)[None, :, None]
+    zeros = np.zeros_like(q)
+    s = sample_states(model, q, zeros, zeros, zeros, ["x"], ["m"], stride=1, weight_coordinates=["x"])
+    np.testing.assert_allclose(s.weight, 1.0)
+    np.testing.assert_allclose(s.length[:, 0], q[0, :, 0])
