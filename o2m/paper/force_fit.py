@@ -30,7 +30,9 @@ constants (MuJoCo's ``dynprm``: ``tau_act``, ``tau_deact``, ``tausmooth``) are f
 curves, the activations integrated anew as MuJoCo steps them
 (:func:`o2m.mj.muscle.integrate_activations`): OpenSim's tendon force lags MuJoCo's (Schutte's
 activation rises with the excitation, not the activation, and an elastic tendon delays the force),
-most for the long-tendoned forearm muscles. The fit is
+most for the long-tendoned forearm muscles. With ``ForceSamples.weight`` (:func:`sample_states`
+with ``weight_coordinates``: the muscle's moment arms) each residual is weighted, so the fit
+minimises the joint torque error rather than the force error. The fit is
 bounded least squares (``scipy.optimize.least_squares``) in units of F0 over the training states
 plus, weighted by ``static_weight``, OpenSim's static force curves at activation 1 and 0 (from
 :func:`o2m.muscles.fit_muscles`), which keep the curves sane at lengths the trajectories do not
