@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MJMINVAL", "active_force_length", "force_velocity", "mujoco_muscle_force", "normalized_length",
-           "passive_force"]
+__all__ = ["MJMINVAL", "active_force_length", "force_velocity", "integrate_activations", "muscle_activation_rate",
+           "mujoco_muscle_force", "normalized_length", "passive_force"]
 
 MJMINVAL = 1e-15
 """MuJoCo's ``mjMINVAL``: the smallest divisor its muscle functions allow."""
@@ -65,3 +65,53 @@ def mujoco_muscle_force(params: Any, length, velocity=0.0, activation=1.0):
     bias = -params.force * passive_force(L, params.lmax, params.fpmax)
     out = gain * np.asarray(activation, dtype=float) + bias
     return float(out) if np.ndim(out) == 0 else out
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    """mju_sigmoid: quintic smoothstep, 0 below 0, 1 above 1."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (3.0 * x * (2.0 * x - 5.0) + 10.0)
+
+
+def muscle_activation_rate(ctrl, act, tau_act, tau_deact, tausmooth=0.0) -> np.ndarray:
+    """mju_muscleDynamics: d(act)/dt (1/s) for control ``ctrl`` and activation ``act``.
+
+    Time constants in seconds (``dynprm[0:3]``): ``tau_act (0.5 + 1.5 a)`` rising and
+    ``tau_deact / (0.5 + 1.5 a)`` falling (``a`` = act clipped to [0, 1]), switched hard, or
+    blended by a quintic sigmoid of ``(ctrl - act) / tausmooth`` when ``tausmooth > 0``.
+    Arrays broadcast.
+    """
+    ctrl, act = np.clip(np.asarray(ctrl, float), 0.0, 1.0), np.asarray(act, float)
+    a = np.clip(act, 0.0, 1.0)
+    t_act = np.asarray(tau_act, float) * (0.5 + 1.5 * a)
+    t_deact = np.asarray(tau_deact, float) / (0.5 + 1.5 * a)
+    dctrl = ctrl - act
+    smooth = np.asarray(tausmooth, float)
+    blend = _sigmoid(dctrl / np.maximum(smooth, MJMINVAL) + 0.5)
+    tau = np.where(smooth < MJMINVAL, np.where(dctrl > 0, t_act, t_deact), t_deact + (t_act - t_deact) * blend)
+    return dctrl / np.maximum(MJMINVAL, tau)
+
+
+def integrate_activations(controls: np.ndarray, initial: np.ndarray, dynprm: np.ndarray, timestep: float,
+                          actrange: tuple[float, float] | None = None) -> np.ndarray:
+    """Muscle activations as MuJoCo's Euler step integrates them (``actearly`` off).
+
+    Args:
+        controls: the control of every step, shape (..., T - 1, M).
+        initial: activations at the first sample, shape (..., M).
+        dynprm: per muscle (tau_act, tau_deact, tausmooth) in seconds, shape (M, 3) (or broadcastable).
+        timestep: seconds; actrange: clamp of a limited activation (None: unlimited).
+    Returns:
+        activations at every sample, shape (..., T, M).
+    """
+    controls = np.asarray(controls, float)
+    prm = np.asarray(dynprm, float)
+    out = np.empty(controls.shape[:-2] + (controls.shape[-2] + 1, controls.shape[-1]))
+    act = np.asarray(initial, float).copy()
+    out[..., 0, :] = act
+    for k in range(controls.shape[-2]):
+        act = act + timestep * muscle_activation_rate(controls[..., k, :], act, prm[..., 0], prm[..., 1], prm[..., 2])
+        if actrange is not None:
+            act = np.clip(act, *actrange)
+        out[..., k + 1, :] = act
+    return out

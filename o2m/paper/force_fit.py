@@ -23,8 +23,16 @@ dataset records them, :mod:`o2m.dataset`), with this force (N, positive when pul
 ``L`` and ``V`` are MuJoCo's actuator length (m) and velocity (m/s) at OpenSim's state, so the fit
 also absorbs what the path approximations leave; ``act`` is the activation the caller gives:
 :mod:`o2m.paper` gives MuJoCo's own activation for OpenSim's excitations
-(:func:`o2m.mujoco_sim.muscle_activations`), so the fit also absorbs what MuJoCo's activation
-dynamics cannot copy of OpenSim's (and, in part, an elastic tendon's lag). The fit is
+(:func:`o2m.mj.simulate.muscle_activations`), so the fit also absorbs what MuJoCo's activation
+dynamics cannot copy of OpenSim's (and, in part, an elastic tendon's lag). When the samples carry
+their controls (:func:`sample_states` with ``excitations``), each muscle's activation time
+constants (MuJoCo's ``dynprm``: ``tau_act``, ``tau_deact``, ``tausmooth``) are fitted with the
+curves, the activations integrated anew as MuJoCo steps them
+(:func:`o2m.mj.muscle.integrate_activations`): OpenSim's tendon force lags MuJoCo's (Schutte's
+activation rises with the excitation, not the activation, and an elastic tendon delays the force),
+most for the long-tendoned forearm muscles. With ``ForceSamples.weight`` (:func:`sample_states`
+with ``weight_coordinates``: the muscle's moment arms) each residual is weighted, so the fit
+minimises the joint torque error rather than the force error. The fit is
 bounded least squares (``scipy.optimize.least_squares``) in units of F0 over the training states
 plus, weighted by ``static_weight``, OpenSim's static force curves at activation 1 and 0 (from
 :func:`o2m.muscles.fit_muscles`), which keep the curves sane at lengths the trajectories do not
@@ -46,9 +54,10 @@ import mujoco
 import numpy as np
 
 from o2m.convert.muscles import fit_muscles
-from o2m.mj.muscle import active_force_length, force_velocity, passive_force
+from o2m.mj.muscle import active_force_length, force_velocity, integrate_activations, passive_force
 from o2m.mj.posing import joint_equality_plan
 from o2m.mj.simulate import STATE_SPEC, initial_state
+from o2m.mj.tendons import tendon_jacobian
 from o2m.parallel import map_with_progress
 
 __all__ = ["ForceFit", "MuscleForceFit", "ForceSamples", "TINY", "fit_forces", "pulling_force", "sample_states",
@@ -65,6 +74,8 @@ _LOWER = np.array([0.0, 1e-3, 0.0, 1.0 + 1e-4, math.log(0.05), 1.0 + 1e-4, 0.5, 
 _UPPER = np.array([4.0, 8.0, 1.0 - 1e-4, 6.0, math.log(50.0), 3.0, 2.0, np.inf, np.inf, np.inf, np.inf, np.inf])
 #: How far (m) beyond the actuator's lengthrange the spring's edge may go.
 EDGE_MARGIN = 0.05
+#: Bounds of the activation time constants (tau_act, tau_deact, tausmooth), s.
+DYN_LOWER, DYN_UPPER = np.array([0.002, 0.01, 0.0]), np.array([0.2, 0.5, 2.0])
 
 
 @dataclass
@@ -76,6 +87,11 @@ class ForceSamples:
         length, velocity: MuJoCo actuator length (m) and velocity (m/s) at OpenSim's states, (N, M).
         activation: the muscles' activation at those states, (N, M); force: OpenSim's tendon force (N), (N, M).
         trajectory: which trajectory each sample comes from, (N,).
+        step: the sample's time step in its trajectory, (N,); with ``controls`` (the MuJoCo control
+            of every step of every trajectory, (B, T - 1, M)), ``initial_activation`` ((B, M)) and
+            ``timestep`` (s), the fit can integrate the activations anew for other time constants.
+        weight: optional weight of each sample's force residual per muscle, (N, M) (e.g. the
+            muscle's moment arm there, so the fit minimises the joint torque error).
     """
 
     muscles: list[str]
@@ -84,15 +100,23 @@ class ForceSamples:
     activation: np.ndarray
     force: np.ndarray
     trajectory: np.ndarray
+    step: np.ndarray | None = None
+    controls: np.ndarray | None = None
+    initial_activation: np.ndarray | None = None
+    timestep: float = 0.002
+    weight: np.ndarray | None = None
 
     def subset(self, rows: np.ndarray) -> ForceSamples:
         return ForceSamples(self.muscles, self.length[rows], self.velocity[rows], self.activation[rows],
-                            self.force[rows], self.trajectory[rows])
+                            self.force[rows], self.trajectory[rows], None if self.step is None else self.step[rows],
+                            self.controls, self.initial_activation, self.timestep,
+                            None if self.weight is None else self.weight[rows])
 
 
 def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.ndarray, activations: np.ndarray,
                   forces: np.ndarray, coordinate_names: Sequence[str], muscles: Sequence[str], *,
-                  stride: int = 2) -> ForceSamples:
+                  stride: int = 2, excitations: np.ndarray | None = None,
+                  weight_coordinates: Sequence[str] | None = None) -> ForceSamples:
     """MuJoCo actuator lengths and velocities at every ``stride``-th OpenSim state.
 
     Args:
@@ -101,9 +125,18 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
         activations: muscle activations at those states (OpenSim's, or MuJoCo's for the same
             excitations), shape (B, T, M); forces: OpenSim's tendon forces (N), shape (B, T, M);
             columns in ``muscles`` order.
+        excitations: the excitations of the trajectories, (B, T, M); given, the samples carry
+            MuJoCo's controls (the mean of each step's two excitations, clipped to [0, 1], as
+            :func:`o2m.mj.simulate.muscle_activations` steps them) and ``activations[:, 0]`` as the
+            initial activations, so :func:`fit_forces` can fit the activation time constants.
+        weight_coordinates: given (names of joints), each sample's residual weight is the norm of
+            the muscle's moment arms about them there (MuJoCo's), scaled to RMS 1 per muscle (1 for
+            a muscle with no arm about them): the fit then minimises the torque error.
     """
     data = mujoco.MjData(model)
     ids = np.array([model.actuator(m).id for m in muscles])
+    tendons = model.actuator_trnid[ids, 0]
+    dofs = [int(model.joint(c).dofadr[0]) for c in weight_coordinates or []]
     plan = joint_equality_plan(model)
     rows = []
     for b in range(coordinates.shape[0]):
@@ -115,13 +148,25 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
             mujoco.mj_setState(model, data, x, STATE_SPEC)
             mujoco.mj_fwdPosition(model, data)
             mujoco.mj_fwdVelocity(model, data)
+            arm = np.linalg.norm(tendon_jacobian(model, data)[np.ix_(tendons, dofs)], axis=1) if dofs else None
             rows.append((data.actuator_length[ids].copy(), data.actuator_velocity[ids].copy(),
-                         activations[b, k], forces[b, k], b))
+                         activations[b, k], forces[b, k], b, k, arm))
     if not rows:
         raise ValueError("no finite OpenSim states to sample")
+    controls = initial = None
+    if excitations is not None:
+        exc = np.asarray(excitations, float)
+        controls = np.clip(0.5 * (exc[:, :-1] + exc[:, 1:]), 0.0, 1.0)
+        initial = np.asarray(activations, float)[:, 0, :]
+    weight = None
+    if dofs:
+        arms = np.array([r[6] for r in rows])
+        rms = np.sqrt(np.mean(arms**2, axis=0))
+        weight = np.where(rms > 1e-6, arms / np.maximum(rms, 1e-12), 1.0)
     return ForceSamples(list(muscles), np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
                         np.array([r[2] for r in rows], float), np.array([r[3] for r in rows], float),
-                        np.array([r[4] for r in rows]))
+                        np.array([r[4] for r in rows]), np.array([r[5] for r in rows]), controls, initial,
+                        float(model.opt.timestep), weight)
 
 
 def pulling_force(model: mujoco.MjModel, muscle: str, length, velocity, activation) -> np.ndarray:
@@ -189,6 +234,7 @@ class MuscleForceFit:
     rms_held_out_start: float
     rms_held_out: float
     kept: bool = True
+    dynprm: list[float] | None = None  # (tau_act, tau_deact, tausmooth) s; None: the model's own
 
     def force_at(self, length, velocity, activation) -> np.ndarray:
         """The fitted force (N, positive when pulling) at MuJoCo actuator lengths (m), velocities (m/s), activations."""
@@ -246,6 +292,23 @@ def _bounds(lr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @dataclass
+class _Dynamics:
+    """One muscle's activation inputs: controls (B, T - 1), initial activations (B,), and where
+    each sample sits: trajectory and step, (N,) each."""
+
+    controls: np.ndarray
+    initial: np.ndarray
+    trajectory: np.ndarray
+    step: np.ndarray
+    timestep: float
+
+    def activations(self, dynprm: np.ndarray) -> np.ndarray:
+        """The activation at every sample, (N,), for (tau_act, tau_deact, tausmooth) ``dynprm`` (s)."""
+        act = integrate_activations(self.controls[..., None], self.initial[:, None], dynprm, self.timestep)
+        return act[self.trajectory, self.step, 0]
+
+
+@dataclass
 class _Task:
     name: str
     f0: float
@@ -256,6 +319,10 @@ class _Task:
     static: tuple[np.ndarray, ...] | None
     static_weight: float
     max_nfev: int
+    dyn0: np.ndarray | None = None  # the model's (tau_act, tau_deact, tausmooth), s
+    train_dynamics: _Dynamics | None = None  # given, the time constants are fitted too
+    held_dynamics: _Dynamics | None = None
+    weight: np.ndarray | float = 1.0  # of each training residual
 
 
 def _rms(x: np.ndarray, t: _Task, data: tuple[np.ndarray, ...]) -> float:
@@ -265,34 +332,97 @@ def _rms(x: np.ndarray, t: _Task, data: tuple[np.ndarray, ...]) -> float:
     return float(100 * math.sqrt(np.mean(r * r)))
 
 
-def _fit_one(t: _Task) -> MuscleForceFit:
+def _static_residuals(t: _Task, x: np.ndarray, n: int) -> list[np.ndarray]:
+    """OpenSim's static curves at activation 1 and 0, weighted as ``n`` trajectory states."""
+    if t.static is None:
+        return []
+    w = t.static_weight * math.sqrt(n / max(1, len(t.static[0])))
+    ls, fa, fp = t.static
+    zero = np.zeros_like(ls)
+    return [w * (_force(x, t.f0, t.lr, ls, zero, 1.0) - fa) / t.f0,
+            w * (_force(x, t.f0, t.lr, ls, zero, 0.0) - fp) / t.f0]
+
+
+def _fit_curves(t: _Task, x0: np.ndarray, train: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Least squares of the force parameters on ``train`` (length, velocity, activation, force) and the
+    static curves."""
     from scipy.optimize import least_squares
 
-    n = len(t.train[0])
-    w_static = t.static_weight * math.sqrt(n / max(1, len(t.static[0]))) if t.static is not None else 0.0
+    L, V, A, F = train
+    if not len(L):
+        return x0
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        r = [(_force(x, t.f0, t.lr, *t.train[:3]) - t.train[3]) / t.f0]
-        if t.static is not None:
-            ls, fa, fp = t.static
-            zero = np.zeros_like(ls)
-            r.append(w_static * (_force(x, t.f0, t.lr, ls, zero, 1.0) - fa) / t.f0)
-            r.append(w_static * (_force(x, t.f0, t.lr, ls, zero, 0.0) - fp) / t.f0)
-        return np.concatenate(r)
+        return np.concatenate([t.weight * (_force(x, t.f0, t.lr, L, V, A) - F) / t.f0,
+                               *_static_residuals(t, x, len(L))])
 
     lo, hi = _bounds(t.lr)
+    return least_squares(residuals, x0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=t.max_nfev).x
+
+
+def _fit_with_dynamics(t: _Task, x0: np.ndarray, dyn: _Dynamics) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares of the force parameters and the activation time constants (s) together.
+
+    The activations are integrated once per set of time constants (cached), so the force
+    parameters' finite differences cost no integration.
+    """
+    from scipy.optimize import least_squares
+
+    L, V, _, F = t.train
+    n = len(x0)
+    cache: dict[bytes, np.ndarray] = {}
+
+    def activations(d: np.ndarray) -> np.ndarray:
+        key = d.tobytes()
+        if key not in cache:
+            if len(cache) > 8:
+                cache.clear()
+            cache[key] = dyn.activations(d)
+        return cache[key]
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        x, d = p[:n], p[n:]
+        return np.concatenate([t.weight * (_force(x, t.f0, t.lr, L, V, activations(d)) - F) / t.f0,
+                               *_static_residuals(t, x, len(L))])
+
+    lo, hi = _bounds(t.lr)
+    # the smoothing starts inside its bounds: at 0 MuJoCo switches hard and its slope is lost
+    d0 = np.clip([t.dyn0[0], t.dyn0[1], max(t.dyn0[2], 0.05)], DYN_LOWER + 1e-9, DYN_UPPER - 1e-9)
+    res = least_squares(residuals, np.concatenate([x0, d0]), bounds=(np.r_[lo, DYN_LOWER], np.r_[hi, DYN_UPPER]),
+                        method="trf", x_scale="jac", max_nfev=t.max_nfev)
+    return res.x[:n], res.x[n:]
+
+
+def _with_activation(data: tuple[np.ndarray, ...], activation: np.ndarray) -> tuple[np.ndarray, ...]:
+    return data[0], data[1], activation, data[3]
+
+
+def _fit_one(t: _Task) -> MuscleForceFit:
+    lo, hi = _bounds(t.lr)
     x0 = np.clip(t.x0, lo + 1e-12, hi - 1e-12)
-    x = x0
-    if n:
-        res = least_squares(residuals, x0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=t.max_nfev)
-        x = res.x
-    held_start, held = _rms(x0, t, t.held), _rms(x, t, t.held)
-    kept = bool(not np.isfinite(held) or held <= held_start) and _rms(x, t, t.train) <= _rms(x0, t, t.train)
-    best = x if kept else x0
+    d0 = t.dyn0
+    train0, held0 = t.train, t.held
+    if t.train_dynamics is not None:  # the activations of the model's own time constants
+        train0 = _with_activation(t.train, t.train_dynamics.activations(d0))
+        if t.held_dynamics is not None and len(t.held[0]):
+            held0 = _with_activation(t.held, t.held_dynamics.activations(d0))
+    x, d, train, held = _fit_curves(t, x0, train0), d0, train0, held0
+    if t.train_dynamics is not None and len(train0[0]):
+        # the time constants absorb the lag of OpenSim's force (its activation dynamics and elastic
+        # tendon) behind MuJoCo's, fitted with the curves, from the curves fitted at the model's own
+        x, d = _fit_with_dynamics(t, x, t.train_dynamics)
+        train = _with_activation(t.train, t.train_dynamics.activations(d))
+        if t.held_dynamics is not None and len(t.held[0]):
+            held = _with_activation(t.held, t.held_dynamics.activations(d))
+    held_start, held_fit = _rms(x0, t, held0), _rms(x, t, held)
+    kept = bool(not np.isfinite(held_fit) or held_fit <= held_start) and _rms(x, t, train) <= _rms(x0, t, train0)
+    best, best_train, best_held = (x, train, held) if kept else (x0, train0, held0)
     r0, w, lmin, lmax, lvmax, fvmax, scale, edge, k1, k2, k3, c = (float(v) for v in best)
+    dynprm = [float(v) for v in d] if kept and t.train_dynamics is not None else None
     return MuscleForceFit(t.name, t.f0, [float(v) for v in t.lr], [r0, r0 + w], lmin, lmax, math.exp(lvmax), fvmax,
                           scale, edge, [k1, k2, k3], c,
-                          _rms(x0, t, t.train), _rms(best, t, t.train), held_start, _rms(best, t, t.held), kept)
+                          _rms(x0, t, train0), _rms(best, t, best_train), held_start, _rms(best, t, best_held), kept,
+                          dynprm)
 
 
 @dataclass
@@ -316,6 +446,8 @@ class ForceFit:
             m.tendon_stiffnesspoly[t] = f.stiffness[1:]
             m.tendon_lengthspring[t] = [0.0, f.edge]
             m.tendon_damping[t] = f.damping
+            if f.dynprm is not None:
+                m.actuator_dynprm[a, :3] = f.dynprm
         return m
 
     def write_mjcf(self, xml_in: str | os.PathLike[str], xml_out: str | os.PathLike[str]) -> Path:
@@ -337,11 +469,16 @@ class ForceFit:
                 for key, v in (("range", f.range), ("force", f.force * f.scale), ("lmin", f.lmin), ("lmax", f.lmax),
                                ("vmax", f.vmax), ("fpmax", TINY), ("fvmax", f.fvmax)):
                     act.set(key, num(v))
+                if f.dynprm is not None:
+                    act.set("timeconst", num(f.dynprm[:2]))
+                    act.set("tausmooth", num(f.dynprm[2]))
             else:  # <general dyntype="muscle" ...> as MuJoCo writes it: keep the scale (gainprm[3])
                 scale = float((act.get("gainprm") or "0 0 0 200").split()[3])
                 prm = [f.range[0], f.range[1], f.force * f.scale, scale, f.lmin, f.lmax, f.vmax, TINY, f.fvmax]
                 act.set("gainprm", num(prm))
                 act.set("biasprm", num(prm))
+                if f.dynprm is not None:
+                    act.set("dynprm", num(f.dynprm))
             ten.set("stiffness", num(f.stiffness))
             ten.set("springlength", num([0.0, f.edge]))
             ten.set("damping", num(f.damping))
@@ -376,13 +513,16 @@ class ForceFit:
 
 def fit_forces(model: mujoco.MjModel, train: ForceSamples, *, held_out: ForceSamples | None = None,
                static: Mapping[str, tuple[np.ndarray, ...]] | None = None, static_weight: float = STATIC_WEIGHT,
-               max_nfev: int = 600, processes: int | None = None, progress: bool = True) -> ForceFit:
+               max_nfev: int = 600, processes: int | None = None, progress: bool = True,
+               fit_dynamics: bool = True) -> ForceFit:
     """Fit every muscle in ``train.muscles`` (see the module docstring).
 
     ``held_out`` states decide whether each fit is kept (default: every fifth training
     trajectory is held out). ``static`` comes from :func:`static_curves`. ``max_nfev`` bounds the
-    least-squares evaluations per muscle. The fits run in
-    ``processes`` worker processes (default: all cores); the result does not depend on it.
+    least-squares evaluations per muscle (of each stage). ``fit_dynamics``: when the samples carry
+    their controls (:func:`sample_states` with ``excitations``), also fit each muscle's activation
+    time constants (``dynprm``). The fits run in ``processes`` worker processes (default: all
+    cores); the result does not depend on it.
     """
     if held_out is None:
         traj = np.unique(train.trajectory)
@@ -395,12 +535,24 @@ def fit_forces(model: mujoco.MjModel, train: ForceSamples, *, held_out: ForceSam
         if not (int(model.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_MUSCLE) and f0 > 0):
             raise ValueError(f"actuator {name!r} is not a muscle with a given max force (gainprm[2] > 0)")
         st = (static or {}).get(name)
+        dynamic = fit_dynamics and _dynamics(train, j) is not None
         tasks.append(_Task(name, f0, model.actuator_lengthrange[a].copy(), _start(model, a, st),
                            (train.length[:, j], train.velocity[:, j], train.activation[:, j], train.force[:, j]),
                            (held_out.length[:, j], held_out.velocity[:, j], held_out.activation[:, j],
-                            held_out.force[:, j]), st, static_weight, max_nfev))
+                            held_out.force[:, j]), st, static_weight, max_nfev, model.actuator_dynprm[a, :3].copy(),
+                           _dynamics(train, j) if dynamic else None, _dynamics(held_out, j) if dynamic else None,
+                           1.0 if train.weight is None else train.weight[:, j]))
     fits = {f.name: f for f in map_with_progress(_fit_one, tasks, workers=processes, desc="muscle forces",
                                                  unit="muscle", progress=progress)}
     return ForceFit({t.name: fits[t.name] for t in tasks},
                     {"static_weight": static_weight, "max_nfev": max_nfev, "train_samples": len(train.length),
-                     "held_out_samples": len(held_out.length)})
+                     "held_out_samples": len(held_out.length),
+                     "fit_dynamics": any(t.train_dynamics is not None for t in tasks)})
+
+
+def _dynamics(samples: ForceSamples, j: int) -> _Dynamics | None:
+    """Muscle ``j``'s activation inputs, if the samples carry their controls."""
+    if samples.controls is None or samples.step is None or samples.initial_activation is None:
+        return None
+    return _Dynamics(samples.controls[:, :, j], samples.initial_activation[:, j], samples.trajectory, samples.step,
+                     samples.timestep)

@@ -381,7 +381,8 @@ def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[
     activations = muscle_activations(exp.model, ds.muscle_names, ds.activations.values[sets][..., cols],
                                      ds.opensim_activations[sets][:, 0, :])
     samples = sample_states(exp.model, ds.coordinates[sets], ds.speeds[sets], activations, ds.tendon_forces[sets],
-                            ds.coordinate_names, ds.muscle_names, stride=settings.force_stride)
+                            ds.coordinate_names, ds.muscle_names, stride=settings.force_stride,
+                            excitations=ds.activations.values[sets][..., cols], weight_coordinates=exp.dofs)
     osim = models.fetch_model(ds.meta["model"], progress=False)
     forces = fit_forces(exp.model, samples, static=static_curves(osim, exp.model), max_nfev=settings.force_nfev,
                         progress=progress)

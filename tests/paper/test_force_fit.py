@@ -6,7 +6,17 @@ import mujoco
 import numpy as np
 import pytest
 
-from o2m.paper.force_fit import ForceFit, ForceSamples, MuscleForceFit, _force, _start, fit_forces, pulling_force
+from o2m.mj.muscle import integrate_activations
+from o2m.paper.force_fit import (
+    ForceFit,
+    ForceSamples,
+    MuscleForceFit,
+    _force,
+    _start,
+    fit_forces,
+    pulling_force,
+    sample_states,
+)
 
 #: A muscle on a fixed tendon of a slide joint, so that the actuator length is the joint position.
 SLIDER = """
@@ -26,9 +36,9 @@ def _model() -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(SLIDER)
 
 
-def _known() -> MuscleForceFit:
+def _known(dynprm: list[float] | None = None) -> MuscleForceFit:
     return MuscleForceFit("m", 500.0, [0.15, 0.35], [0.55, 1.35], 0.35, 1.7, 2.5, 1.4, 1.1, 0.26,
-                          [800.0, 2e4, 5e5], 30.0, np.nan, np.nan, np.nan, np.nan)
+                          [800.0, 2e4, 5e5], 30.0, np.nan, np.nan, np.nan, np.nan, dynprm=dynprm)
 
 
 def test_applied_model_produces_the_fitted_force():
@@ -59,11 +69,11 @@ def test_pulling_force_is_what_mujoco_applies(fitted):
 def test_written_mjcf_matches_the_applied_model(tmp_path):
     src = tmp_path / "in.xml"
     src.write_text(SLIDER)
-    fit = ForceFit({"m": _known()})
+    fit = ForceFit({"m": _known([0.03, 0.09, 0.2])})
     written = mujoco.MjModel.from_xml_path(str(fit.write_mjcf(src, tmp_path / "out.xml")))
     applied = fit.apply(_model())
-    for field in ("actuator_gainprm", "actuator_biasprm", "tendon_stiffness", "tendon_stiffnesspoly",
-                  "tendon_lengthspring", "tendon_damping"):
+    for field in ("actuator_gainprm", "actuator_biasprm", "actuator_dynprm", "tendon_stiffness",
+                  "tendon_stiffnesspoly", "tendon_lengthspring", "tendon_damping"):
         np.testing.assert_allclose(getattr(written, field), getattr(applied, field), rtol=1e-12, err_msg=field)
 
 
@@ -108,3 +118,70 @@ def test_fit_needs_a_muscle_actuator():
     model = mujoco.MjModel.from_xml_string(xml)
     with pytest.raises(ValueError, match="not a muscle"):
         fit_forces(model, _samples(_known(), 100, 0), processes=1, progress=False)
+
+
+@pytest.mark.parametrize("tausmooth", [0.0, 0.3])
+def test_integrated_activations_are_what_mujoco_steps(tausmooth):
+    model = _model()
+    model.actuator_dynprm[0, :3] = [0.03, 0.09, tausmooth]
+    data = mujoco.MjData(model)
+    controls = np.random.default_rng(6).uniform(-0.2, 1.2, (300, 1))  # MuJoCo clamps them to [0, 1]
+    data.act[0] = 0.2
+    stepped = [data.act[0]]
+    for c in controls:
+        data.ctrl[0] = c[0]
+        mujoco.mj_step(model, data)
+        stepped.append(data.act[0])
+    ours = integrate_activations(controls, np.array([0.2]), model.actuator_dynprm[:, :3], model.opt.timestep)
+    np.testing.assert_allclose(ours[:, 0], stepped, rtol=0, atol=1e-12)
+
+
+def _dynamic_samples(truth: MuscleForceFit, n_traj: int, seed: int, model: mujoco.MjModel) -> ForceSamples:
+    """Trajectories of sine excitations; the force at each sample is the truth's at its own time constants,
+    the activations given are the model's (what the fit starts from)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(400) * 0.002
+    f, phase = rng.uniform(0.5, 4.0, (n_traj, 1)), rng.uniform(0, 2 * np.pi, (n_traj, 1))
+    exc = (0.5 * (1 + np.sin(2 * np.pi * f * t + phase)))[..., None]
+    controls = 0.5 * (exc[:, :-1] + exc[:, 1:])
+    a0 = np.zeros((n_traj, 1))
+    true_act = integrate_activations(controls, a0, truth.dynprm, 0.002)
+    given_act = integrate_activations(controls, a0, model.actuator_dynprm[:, :3], 0.002)
+    traj, step = np.divmod(np.arange(n_traj * 400), 400)
+    L, V = rng.uniform(0.15, 0.35, traj.size), rng.uniform(-0.6, 0.6, traj.size)
+    F = truth.force_at(L, V, true_act[traj, step, 0])
+    return ForceSamples(["m"], L[:, None], V[:, None], given_act[traj, step], F[:, None], traj, step, controls, a0,
+                        0.002)
+
+
+def test_fit_recovers_known_activation_time_constants():
+    model = _model()  # MuJoCo's default time constants, 0.01 / 0.04 s
+    truth = _known()
+    truth.dynprm = [0.03, 0.09, 0.0]
+    train, held = _dynamic_samples(truth, 6, 7, model), _dynamic_samples(truth, 2, 8, model)
+    static = fit_forces(model, train, held_out=held, processes=1, progress=False, fit_dynamics=False).muscles["m"]
+    fit = fit_forces(model, train, held_out=held, processes=1, progress=False).muscles["m"]
+    assert static.dynprm is None and static.rms > 1.0  # the curves alone cannot make up the lag (% of F0)
+    assert fit.kept and fit.rms < 0.1 and fit.rms_held_out < 0.1
+    np.testing.assert_allclose(fit.dynprm[:2], truth.dynprm[:2], rtol=0.05)
+    applied = ForceFit({"m": fit}).apply(model)
+    np.testing.assert_allclose(applied.actuator_dynprm[0, :3], fit.dynprm)
+
+
+def test_samples_of_zero_weight_do_not_move_the_fit():
+    truth = _known()
+    train = _samples(truth, 1500, 9)
+    corrupted = np.arange(1500) % 3 == 0
+    train.force[corrupted, 0] *= 1.3
+    train.weight = np.where(corrupted, 0.0, 1.0)[:, None]
+    fit = fit_forces(_model(), train, held_out=_samples(truth, 300, 10), processes=1, progress=False).muscles["m"]
+    assert fit.kept and fit.rms_held_out < 0.05
+
+
+def test_sampled_weights_are_the_moment_arms_scaled_to_rms_one():
+    model = _model()  # the muscle's tendon is the slide joint itself: moment arm 1 at every pose
+    q = np.linspace(0.16, 0.34, 8)[None, :, None]
+    zeros = np.zeros_like(q)
+    s = sample_states(model, q, zeros, zeros, zeros, ["x"], ["m"], stride=1, weight_coordinates=["x"])
+    np.testing.assert_allclose(s.weight, 1.0)
+    np.testing.assert_allclose(s.length[:, 0], q[0, :, 0])
