@@ -34,10 +34,12 @@ BAND_FRACTION = 0.05
 BAND_GATE = 0.05
 #: A wrap contact point of OpenSim's current path beyond an inner path point, along the segment
 #: the wrap acts on, by more than this fraction of the segment's length (see :func:`path_detour`).
-#: Measured over 40 random poses (largest such overshoot at a path's first or last point, where
-#: no detour is possible: MoBL-ARMS's LAT1-3 0.084, TMAJ 0.041; at an inner point: SUP 0.037;
-#: the detours: ECRL 0.70, EDCM 0.13 on MoBL_ARMS_model_for_mujoco.osim).
-DETOUR_FRACTION = 0.1
+#: Measured on MoBL-ARMS: overshoots a converted tendon follows stay under it (EDCM's wrist torus
+#: past EDCM-P3 at every pose, 0.10-0.13, fitted within 1.2 %; at a path's first point, where no
+#: detour is possible, LAT1-3 0.084), the detours a tendon cannot follow are above it (ECRL
+#: 0.38-0.68, LAT2 1.21 at 0.94 m for ~0.33 m, EDCM 3.3). At 0.1 EDCM's overshoot counted as a
+#: detour: the wrap fit left those poses out and the tendon drifted 5 % off everywhere.
+DETOUR_FRACTION = 0.25
 #: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
 DLDQ_CONSISTENCY = 1e-3
 
