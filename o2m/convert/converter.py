@@ -33,7 +33,7 @@ from o2m.convert.report import ConversionReport
 from o2m.convert.tendons import add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry
 from o2m.convert.wrap_choice import split_variants
-from o2m.convert.wrap_split import add_wrap_splits, narrow_wrap_ranges
+from o2m.convert.wrap_split import add_wrap_splits, describe_kept, narrow_wrap_ranges, split_sites
 from o2m.convert.wrapfit import apply_fits, fit_paths
 from o2m.convert.wraps import restore_geom_precision
 from o2m.errors import O2MError
@@ -161,9 +161,11 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
                 designed.setdefault(v.path, []).append(v)
             fits = fit_paths(osim, xml0, tendons.path_geoms, workers=options.workers, held=tendons.held,
                              quick=options.quick,
-                             designed=designed, vias={r.path: r.sites for r in splits},
+                             designed=designed, vias=split_sites(splits),
                              variants=split_variants(splits, tendons.path_geoms))
             apply_fits(spec, fits, builder.exact, tendons.exact)
+            describe_kept(splits, {f.tendon: set(f.dropped) for f in fits},
+                          {(g.tendon, g.source): g.geom for g in tendons.path_geoms})
             model = spec.compile()
             fit_seconds = time.perf_counter() - t_fit
         _set_length_ranges(spec, model, builder)

@@ -59,6 +59,10 @@ class WrapSplit:
     dropped: list[str] = field(default_factory=list)  # wraps left out: never touched, or alternatives
     order: list[str] = field(default_factory=list)  # every wrap of the segment, in path order
     touched: list[int] = field(default_factory=list)  # poses OpenSim touches each of ``order`` at
+    n_poses: int = 0  # poses sampled (the reference pose and the random ones that assembled)
+    #: the report's entry for this split, rewritten by :func:`describe_kept` once the wrap fit has
+    #: chosen which wraps the tendon keeps
+    approximation: Approximation | None = field(default=None, repr=False, compare=False)
 
 
 class _OpenSimPaths:
@@ -279,20 +283,57 @@ def add_wrap_splits(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, Wr
             rec = split_path(os_paths, builder, path, seg, names, wraps)
             if rec is None:
                 continue
+            rec.n_poses = len(os_paths.states)
             worst = max((x for x in rec.scatter_mm if np.isfinite(x)), default=0.0)
-            counts = ", ".join(f"{n} {c}" for n, c in zip(rec.order, rec.touched, strict=True))
-            left = (f"; left out (touched at {counts} "
-                    f"of {len(os_paths.states)} poses): {', '.join(rec.dropped)}" if rec.dropped else "")
-            split = (f"split by {len(rec.bodies)} via point(s) on {', '.join(rec.bodies)} (touched together at "
-                     f"{rec.together} poses; OpenSim's path between them runs "
-                     f"{', '.join(f'{x:.3g}' for x in rec.scatter_mm)} mm RMS from them)" if rec.bodies
-                     else f"{rec.wraps[0]} kept alone")
-            builder.result.approximations.append(Approximation(
-                "PathWrap", f"{path.owner}:{'+'.join(names)}",
-                f"wraps {', '.join(names)} share {rec.points[0]}-{rec.points[1]}: {split}{left}",
-                worst, "mm", "RMS distance of OpenSim's between-wrap run from the via point"))
+            rec.approximation = Approximation(
+                "PathWrap", f"{path.owner}:{'+'.join(names)}", _describe(rec, rec.wraps, rec.sites),
+                worst, "mm", "RMS distance of OpenSim's between-wrap run from the via point")
+            builder.result.approximations.append(rec.approximation)
             out.append(rec)
     return out
 
 
-__all__ = ["SPLIT_POSES", "WrapSplit", "add_wrap_splits", "narrow_wrap_ranges", "split_path"]
+def _describe(rec: WrapSplit, kept: list[str], sites: list[str]) -> str:
+    """The report's words for split ``rec`` whose tendon keeps the wraps ``kept`` and the via
+    points ``sites`` (of ``rec.wraps`` and ``rec.sites``)."""
+    idx = [k for k, s in enumerate(rec.sites) if s in sites]
+    if idx:
+        scatter = ", ".join(f"{rec.scatter_mm[k]:.3g}" for k in idx)
+        how = (f"split by {len(idx)} via point(s) on {', '.join(rec.bodies[k] for k in idx)} between "
+               f"{' and '.join(kept)} (touched together at {[rec.together[k] for k in idx]} poses; OpenSim's path "
+               f"between them runs {scatter} mm RMS from them)")
+    else:
+        how = f"{' and '.join(kept) or 'no wrap'} kept, no via point"
+    out = [f"wraps {', '.join(rec.order or rec.wraps)} share {rec.points[0]}-{rec.points[1]}: {how}"]
+    alternatives = [w for w in rec.wraps if w not in kept]
+    if alternatives:
+        out.append(f"left out by the wrap fit (measured error): {', '.join(alternatives)}")
+    if rec.dropped:
+        counts = ", ".join(f"{n} {c}" for n, c in zip(rec.order, rec.touched, strict=True))
+        out.append(f"left out (touched at {counts} of {rec.n_poses} poses): {', '.join(rec.dropped)}")
+    return "; ".join(out)
+
+
+def split_sites(splits: list[WrapSplit]) -> dict[str, list[str]]:
+    """Path -> the via sites of all its splits, in path order of the records (a path may have
+    several split segments; the wrap fit fits all their via sites)."""
+    out: dict[str, list[str]] = {}
+    for rec in splits:
+        out.setdefault(rec.path, []).extend(rec.sites)
+    return out
+
+
+def describe_kept(splits: list[WrapSplit], dropped: dict[str, set[str]], geom_of: dict[tuple[str, str], str]) -> None:
+    """Rewrite each split's report entry to say what its tendon finally keeps, given tendon -> the
+    MuJoCo sites and geoms the wrap fit left out (``dropped``) and (tendon, OpenSim wrap) -> its
+    MuJoCo geom (``geom_of``)."""
+    for rec in splits:
+        if rec.approximation is None:
+            continue
+        gone = dropped.get(rec.path, set())
+        kept = [w for w in rec.wraps if geom_of.get((rec.path, w)) not in gone]
+        rec.approximation.what = _describe(rec, kept, [s for s in rec.sites if s not in gone])
+
+
+__all__ = ["SPLIT_POSES", "WrapSplit", "add_wrap_splits", "describe_kept", "narrow_wrap_ranges", "split_path",
+           "split_sites"]

@@ -395,7 +395,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     from o2m.mj.tendons import coordinate_direction, qpos_to_dof
     from o2m.osim.pair import ModelPair
     from o2m.osim.runtime import sample_bounds
-    from o2m.osim.spikes import SPIKE_TOL, band_suspects, opensim_spikes
+    from o2m.osim.spikes import SPIKE_TOL, band_suspects, opensim_failures
 
     pair = ModelPair(osim_path, xml_path)
     m = pair.mj_model
@@ -446,7 +446,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         err = np.abs(converted - base)
         suspects = wanted_idx[err[wanted_idx] > SPIKE_TOL]
         banded = np.intersect1d(band_suspects(converted, base), wanted_idx)
-        for i in opensim_spikes(pair, values, suspects, raw, banded):
+        for i in opensim_failures(pair, values, suspects, raw, banded):
             ok[i] = False
         valid.append(ok)
         touched.append({t: _wrap_contacts(pair, state, t, w) for t, w in contacts.items()}

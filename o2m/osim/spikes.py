@@ -12,11 +12,14 @@ from typing import Any
 
 import numpy as np
 
+from o2m.osim import runtime
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL
 
-__all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DLDQ_CONSISTENCY", "OUTLIER", "SPIKE_LINEAR_STEP",
-           "SPIKE_STEP", "SPIKE_TOL", "band_suspects", "one_pose_spikes", "opensim_spikes", "outlying_changes"]
+__all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_CONSISTENCY", "OUTLIER",
+           "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "band_suspects", "current_path_points",
+           "one_pose_spikes", "opensim_detours", "opensim_failures", "opensim_spikes", "outlying_changes",
+           "path_detour"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -29,6 +32,14 @@ SPIKE_TOL = 1e-3
 BAND_STEPS = (3.0, 10.0)
 BAND_FRACTION = 0.05
 BAND_GATE = 0.05
+#: A wrap contact point of OpenSim's current path beyond an inner path point, along the segment
+#: the wrap acts on, by more than this fraction of the segment's length (see :func:`path_detour`).
+#: Measured on MoBL-ARMS: overshoots a converted tendon follows stay under it (EDCM's wrist torus
+#: past EDCM-P3 at every pose, 0.10-0.13, fitted within 1.2 %; at a path's first point, where no
+#: detour is possible, LAT1-3 0.084), the detours a tendon cannot follow are above it (ECRL
+#: 0.38-0.68, LAT2 1.21 at 0.94 m for ~0.33 m, EDCM 3.3). At 0.1 EDCM's overshoot counted as a
+#: detour: the wrap fit left those poses out and the tendon drifted 5 % off everywhere.
+DETOUR_FRACTION = 0.25
 #: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
 DLDQ_CONSISTENCY = 1e-3
 
@@ -109,6 +120,74 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
                 beyond = max(base[i] - max(up[i], dn[i]), min(up[i], dn[i]) - base[i]) > tol
                 if i not in out and abs(up[i] - dn[i]) < tol and beyond:
                     out[i] = _evidence(name, h, base[i], dn[i], up[i])
+    return out
+
+
+def path_detour(points: Sequence[tuple[str, str | None, np.ndarray]]) -> dict[str, Any] | None:
+    """Where OpenSim's current path ``points`` ((name, wrap object or None for a path point, ground
+    position (3,) m) in path order) runs past one of its inner path points to a wrap contact and
+    back: a contact point of a wrap on segment A-B that lies beyond A or B along A-B by more than
+    :data:`DETOUR_FRACTION` of the segment, where that end is no end of the path. A wrap on a
+    segment bends it between its ends; OpenSim applies some wraps to the segment's infinite line
+    (MoBL_ARMS_model_for_mujoco.osim's ECRL: its wrist torus acting on ECRL-P1-P2, the path running
+    0.256 m from the elbow to the wrist and back to P2, 0.164 m from P1; its length 0.52 m for
+    0.30 m), so the muscle passes the same place twice; no tendon does that, and MuJoCo wraps only
+    a segment that meets the geom. Returns {"wrap", "segment", "beyond"} (beyond: fraction of the
+    segment) for the largest such overshoot, or None."""
+    fixed = [k for k, p in enumerate(points) if p[1] is None]
+    worst: dict[str, Any] | None = None
+    for ia, ib in zip(fixed[:-1], fixed[1:], strict=True):
+        a, b = points[ia][2], points[ib][2]
+        ab = b - a
+        span = float(ab @ ab)
+        if span < 1e-18:
+            continue
+        for _, wrap, c in points[ia + 1:ib]:
+            t = float((c - a) @ ab) / span
+            # past B (an inner point) or before A (an inner point)
+            beyond = max(t - 1.0 if ib != fixed[-1] else 0.0, -t if ia != fixed[0] else 0.0)
+            if beyond > DETOUR_FRACTION and (worst is None or beyond > worst["beyond"]):
+                worst = {"wrap": wrap, "segment": f"{points[ia][0]}-{points[ib][0]}", "beyond": beyond}
+    return worst
+
+
+def current_path_points(os_model: Any, state: Any, name: str) -> list[tuple[str, str | None, np.ndarray]]:
+    """OpenSim's current path of the path force ``name`` in realised ``state``: (point name, wrap
+    object name or None for a path point, ground position (3,) m, OpenSim's Y-up ground)."""
+    opensim = runtime.opensim()
+    current = runtime.geometry_path(os_model, name).getCurrentPath(state)
+    out = []
+    for k in range(current.getSize()):
+        pw = opensim.PathWrapPoint.safeDownCast(current.get(k))
+        out.append((current.get(k).getName(), pw.getWrapObject().getName() if pw is not None else None,
+                    current.get(k).getLocationInGround(state).to_numpy()))
+    return out
+
+
+def opensim_detours(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
+                    lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
+    ``values`` makes a detour (:func:`path_detour`): muscle index -> {"test": "detour", "wrap",
+    "segment", "beyond", "length" (m)}."""
+    out: dict[int, dict[str, Any]] = {}
+    if not len(muscles):
+        return out
+    state = pair.os_state(values)
+    for i in muscles:
+        found = path_detour(current_path_points(pair.os_model, state, pair.matched[int(i)][0]))
+        if found is not None:
+            length = float(lengths[int(i)]) if lengths is not None else float(pair.matched[int(i)][2].getLength(state))
+            out[int(i)] = {"test": "detour", **found, "length": length}
+    return out
+
+
+def opensim_failures(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
+                     lengths: np.ndarray | None = None, banded: Sequence[int] = ()) -> dict[int, dict[str, Any]]:
+    """:func:`opensim_spikes`, and for the ``banded`` muscles it does not flag,
+    :func:`opensim_detours`: every (muscle, pose) sample that is no fair test of a converted path."""
+    out = opensim_spikes(pair, values, muscles, lengths, banded)
+    rest = [int(i) for i in banded if int(i) not in out]
+    out.update(opensim_detours(pair, values, rest, lengths) if rest else {})
     return out
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from o2m.mj.tendons import FD_STEP, mujoco_moment_arms
 from o2m.osim.pair import ModelPair, is_actuator
 from o2m.osim.runtime import sample_bounds
-from o2m.osim.spikes import DLDQ_CONSISTENCY, SPIKE_TOL, band_suspects, opensim_spikes
+from o2m.osim.spikes import DLDQ_CONSISTENCY, SPIKE_TOL, band_suspects, opensim_failures
 from o2m.validate.kinematics import jsonable, text_table
 from o2m.validate.sweeps import plot_moment_arms
 
@@ -143,7 +143,10 @@ class MuscleReport:
     worst_length: dict[str, Any] | None = None
     skipped_poses: int = 0
     #: (muscle, pose) samples left out because OpenSim's own length spikes there
-    #: (:func:`opensim_spikes`): each {"muscle", "pose", "coordinate", "length", "neighbours"}.
+    #: (:func:`~o2m.osim.spikes.opensim_spikes`): each {"muscle", "pose", "coordinate", "length",
+    #: "neighbours"}; or because its path runs past a path point to a wrap and back
+    #: (:func:`~o2m.osim.spikes.opensim_detours`): {"muscle", "pose", "test": "detour", "wrap",
+    #: "segment", "beyond", "length"}.
     opensim_spikes: list[dict[str, Any]] = field(default_factory=list)
 
     @property
@@ -187,8 +190,8 @@ class MuscleReport:
             f"{self.name}: {len(self.muscles)} muscles, {self.n_poses} poses ({self.ma_poses} for moment arms), "
             f"{len(self.coordinates)} coordinates"
             + (f", {self.skipped_poses} poses skipped (assembly failed)" if self.skipped_poses else "")
-            + (f", {len(self.opensim_spikes)} (muscle, pose) samples left out where OpenSim's own length spikes"
-               if self.opensim_spikes else ""),
+            + (f", {len(self.opensim_spikes)} (muscle, pose) samples left out where OpenSim's own length spikes "
+               "or detours" if self.opensim_spikes else ""),
         ]
         w = max([len("muscle")] + [len(m) for m in self.muscles])
         lines.append(f"  {'muscle':<{w}}  {'max len mm':>10}  {'rms len mm':>10}  {'max len %':>9}  "
@@ -347,7 +350,7 @@ def compare_muscles(
         valid = np.ones(nm, dtype=bool)
         suspects = np.flatnonzero(err > SPIKE_TOL)
         if suspects.size:  # only a sample whose error is over SPIKE_TOL can be an OpenSim spike
-            for i, info in opensim_spikes(pair, values, suspects, l_os, band_suspects(l_mj, l_os)).items():
+            for i, info in opensim_failures(pair, values, suspects, l_os, band_suspects(l_mj, l_os)).items():
                 valid[i] = False
                 spikes.append({"muscle": names[i], "pose": k, **info})
         err = np.where(valid, err, 0.0)

@@ -259,6 +259,29 @@ def _two_link_over_two_cylinders(path) -> None:
     m.printToXML(str(path))
 
 
+def _two_link_looped_over_four_cylinders(path) -> None:
+    """:func:`_two_link_over_two_cylinders` with the path going on from P2 back to P3 (-0.3, -0.2,
+    0) on ground over two more ground cylinders, the first two mirrored about y = -0.1 (centres
+    (-0.05, -0.17) and (-0.15, -0.17), quadrant -y): two segments, each shared by two wraps and
+    moved by both coordinates, so both are split."""
+    _two_link_over_two_cylinders(path)
+    m = osim.Model(str(path))
+    pa = osim.PathActuator.safeDownCast(m.updForceSet().get("m"))
+    pa.updGeometryPath().appendNewPathPoint("P3", m.getGround(), osim.Vec3(-0.3, -0.2, 0))
+    for name, x in (("third", -0.05), ("fourth", -0.15)):
+        w = osim.WrapCylinder()
+        w.setName(name)
+        w.set_radius(0.04)
+        w.set_length(0.1)
+        w.set_translation(osim.Vec3(x, -0.17, 0))
+        w.set_quadrant("-y")
+        m.updGround().addWrapObject(w)
+        pa.updGeometryPath().addPathWrap(w)
+    m.finalizeConnections()
+    m.initSystem()
+    m.printToXML(str(path))
+
+
 def _grid_errors(osim_path, xml) -> np.ndarray:
     """|MuJoCo - OpenSim| length (m) of "m" over a 7 x 7 grid of (q1, q2)."""
     model = osim.Model(str(osim_path))
@@ -301,6 +324,30 @@ def test_two_wraps_on_a_segment_two_coordinates_move_keep_the_best_fitted(tmp_pa
     err = _grid_errors(osim_path, conv.xml)
     assert err.max() < 0.01 * 0.49, err.max()  # 1 % of the shortest length over the grid (0.49 m)
     assert err.max() < 3.6e-3, err.max()  # no worse than both wraps (measured 3.5 mm)
+
+
+def test_a_path_split_on_two_segments_fits_the_via_points_of_both(tmp_path):
+    """Both split segments get a via point, and the wrap fit fits every via point the tendon
+    keeps, of either split (a dict keyed by path once kept only the last split's); each split's
+    report entry names the wraps the tendon finally keeps."""
+    osim_path = tmp_path / "loop.osim"
+    _two_link_looped_over_four_cylinders(osim_path)
+    conv = convert(osim_path, tmp_path / "loop", convert_options(fit_mechanics=False, workers=1))
+    splits = [a for a in conv.report.approximations if a.element == "PathWrap"]
+    assert len(splits) == 2, [a.what for a in splits]
+    (fit,) = conv.report.path_fits
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    path = [m.wrap_objid[m.tendon_adr[0] + k] for k in range(m.tendon_num[0])]
+    kinds = [int(m.wrap_type[m.tendon_adr[0] + k]) for k in range(m.tendon_num[0])]
+    vias = {m.site(i).name for i, kind in zip(path, kinds, strict=True)
+            if kind == int(mujoco.mjtWrap.mjWRAP_SITE) and "-split" in m.site(i).name}
+    assert vias <= set(fit["values"]), (vias, sorted(fit["values"]))
+    geoms = {m.geom(i).name for i, kind in zip(path, kinds, strict=True) if kind == int(mujoco.mjtWrap.mjWRAP_CYLINDER)}
+    for a in splits:
+        kept = a.what.split(": ", 1)[1].split(";")[0]
+        for wrap in ("first", "second", "third", "fourth"):
+            if wrap in a.name:
+                assert (wrap in kept) == any(wrap in g for g in geoms), (a.what, geoms)
 
 
 def _two_segments_cut_one_sphere(path) -> None:

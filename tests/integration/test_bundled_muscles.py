@@ -23,6 +23,7 @@ from o2m.convert.converter import convert
 from o2m.osim.document import load_document
 from o2m.osim.paths import read_paths
 from o2m.osim.skeleton import SkeletonReader, read_skeleton
+from o2m.osim.spikes import DETOUR_FRACTION
 from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, sweep_jumps
 from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_MEDIAN_MM, MA_P95_MM, compare_muscles
 from tests.helpers import approximation_budget, convert_options, require_models
@@ -233,7 +234,10 @@ def test_wrapped_mobl_arms_keeps_its_measured_floors(wrapped_mobl):
     # OpenSim's own failures left out, each with its evidence, and no more than measured (14)
     assert len(rep.opensim_spikes) <= WRAPPED_MOBL["left_out"], len(rep.opensim_spikes)
     for s in rep.opensim_spikes:
-        assert max(abs(s["length"] - n) for n in s["neighbours"]) > 1e-3, s
+        if s.get("test") == "detour":  # OpenSim's path runs past a path point to a wrap and back
+            assert s["beyond"] > DETOUR_FRACTION, s
+        else:
+            assert max(abs(s["length"] - n) for n in s["neighbours"]) > 1e-3, s
 
 
 def test_wrapped_mobl_arms_simulates_one_second_of_random_excitation(wrapped_mobl):
