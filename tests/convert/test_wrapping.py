@@ -245,18 +245,24 @@ def _two_link_over_two_cylinders(path) -> None:
     pa.addNewPathPoint("P1", m.getGround(), osim.Vec3(-0.3, 0.0, 0))
     pa.addNewPathPoint("P2", arm2, osim.Vec3(0.1, 0.0, 0))
     m.addForce(pa)
-    for name, x in (("first", -0.15), ("second", -0.05)):
+    _add_ground_cylinders(m, pa, (("first", -0.15), ("second", -0.05)), -0.03, "+y")
+    m.printToXML(str(path))
+
+
+def _add_ground_cylinders(m, pa, names_x, y: float, quadrant: str) -> None:
+    """Ground cylinders (radius 0.04, length 0.1) at (x, ``y``, 0) for each (name, x) of
+    ``names_x``, each with ``quadrant``, wrapped by ``pa``'s path in that order; then finalise."""
+    for name, x in names_x:
         w = osim.WrapCylinder()
         w.setName(name)
         w.set_radius(0.04)
         w.set_length(0.1)
-        w.set_translation(osim.Vec3(x, -0.03, 0))
-        w.set_quadrant("+y")
+        w.set_translation(osim.Vec3(x, y, 0))
+        w.set_quadrant(quadrant)
         m.updGround().addWrapObject(w)
         pa.updGeometryPath().addPathWrap(w)
     m.finalizeConnections()
     m.initSystem()
-    m.printToXML(str(path))
 
 
 def _two_link_looped_over_four_cylinders(path) -> None:
@@ -268,17 +274,7 @@ def _two_link_looped_over_four_cylinders(path) -> None:
     m = osim.Model(str(path))
     pa = osim.PathActuator.safeDownCast(m.updForceSet().get("m"))
     pa.updGeometryPath().appendNewPathPoint("P3", m.getGround(), osim.Vec3(-0.3, -0.2, 0))
-    for name, x in (("third", -0.05), ("fourth", -0.15)):
-        w = osim.WrapCylinder()
-        w.setName(name)
-        w.set_radius(0.04)
-        w.set_length(0.1)
-        w.set_translation(osim.Vec3(x, -0.17, 0))
-        w.set_quadrant("-y")
-        m.updGround().addWrapObject(w)
-        pa.updGeometryPath().addPathWrap(w)
-    m.finalizeConnections()
-    m.initSystem()
+    _add_ground_cylinders(m, pa, (("third", -0.05), ("fourth", -0.15)), -0.17, "-y")
     m.printToXML(str(path))
 
 
