@@ -93,14 +93,15 @@ def muscle_activation_rate(ctrl, act, tau_act, tau_deact, tausmooth=0.0) -> np.n
 
 
 def integrate_activations(controls: np.ndarray, initial: np.ndarray, dynprm: np.ndarray, timestep: float,
-                          actrange: tuple[float, float] | None = None) -> np.ndarray:
+                          actrange: tuple[np.ndarray | float, np.ndarray | float] | None = None) -> np.ndarray:
     """Muscle activations as MuJoCo's Euler step integrates them (``actearly`` off).
 
     Args:
         controls: the control of every step, shape (..., T - 1, M).
         initial: activations at the first sample, shape (..., M).
         dynprm: per muscle (tau_act, tau_deact, tausmooth) in seconds, shape (M, 3) (or broadcastable).
-        timestep: seconds; actrange: clamp of a limited activation (None: unlimited).
+        timestep: seconds; actrange: (low, high) clamp of a limited activation, each a number or
+            one per muscle (None: unlimited).
     Returns:
         activations at every sample, shape (..., T, M).
     """

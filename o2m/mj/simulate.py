@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
+from o2m.mj.muscle import integrate_activations
 from o2m.mj.posing import joint_equality_plan, joint_qpos_address, pose_mujoco
 
 __all__ = ["STATE_SPEC", "Trajectories", "controls_from_excitations", "initial_state", "muscle_activations",
@@ -197,29 +198,16 @@ def muscle_activations(model: mujoco.MjModel, muscles: Sequence[str], excitation
         initial: activations at the first sample, shape (..., len(muscles)).
     Returns:
         shape (..., T, len(muscles)): the activation at every sample, as ``mj_step`` computes it
-        (``mju_muscleDynamics`` without smoothing, Euler, then clamped to ``actrange`` where the
-        actuator's activation is limited), without simulating the body.
+        (``mju_muscleDynamics``, smoothed where ``tausmooth`` > 0, Euler, then clamped to
+        ``actrange`` where the actuator's activation is limited), without simulating the body.
     """
     ids = muscle_actuator_ids(model, muscles)
-    t_act, t_deact = model.actuator_dynprm[ids, 0], model.actuator_dynprm[ids, 1]
-    if np.any(model.actuator_dynprm[ids, 2] > 0):
-        raise ValueError("muscle_activations does not model smoothed (tausmooth > 0) muscle dynamics")
     exc = np.asarray(excitations, float)
     ctrl = np.clip(0.5 * (exc[..., :-1, :] + exc[..., 1:, :]), 0.0, 1.0)
-    out = np.empty_like(exc)
-    act = np.asarray(initial, float).copy()
-    out[..., 0, :] = act
-    dt = model.opt.timestep
     limited = model.actuator_actlimited[ids].astype(bool)
-    act_lo = np.where(limited, model.actuator_actrange[ids, 0], -np.inf)
-    act_hi = np.where(limited, model.actuator_actrange[ids, 1], np.inf)
-    for k in range(ctrl.shape[-2]):
-        c = ctrl[..., k, :]
-        a = np.clip(act, 0.0, 1.0)
-        tau = np.where(c - act > 0, t_act * (0.5 + 1.5 * a), t_deact / (0.5 + 1.5 * a))
-        act = np.clip(act + dt * (c - act) / np.maximum(tau, mujoco.mjMINVAL), act_lo, act_hi)
-        out[..., k + 1, :] = act
-    return out
+    bounds = (np.where(limited, model.actuator_actrange[ids, 0], -np.inf),
+              np.where(limited, model.actuator_actrange[ids, 1], np.inf))
+    return integrate_activations(ctrl, initial, model.actuator_dynprm[ids, :3], model.opt.timestep, bounds)
 
 
 @dataclass
