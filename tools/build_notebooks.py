@@ -90,7 +90,7 @@ MuJoCo has no spline couplings, moving path points, conditional path points or O
 models. The report lists each approximation with its worst error over the coordinate's range.
 """),
     code('''
-print(result.report.summary()[:4000])'''),
+print(result.report.summary(timing=False)[:4000])'''),
     md("""
 ## Kinematics against OpenSim
 

@@ -128,6 +128,8 @@ def test_auto_holds_only_the_segment_that_varies_little(pendulum):
     assert rep.muscles["small"].moment_arms["q"].rms < 1e-6  # vs computeMomentArm
     assert rep.muscles["big"].moment_arms["q"].rms_vs_dldq < 1e-6  # kept: vs -dL/dq
     assert "Path forces (auto" in convs["auto"].report.summary()
+    full, steady = convs["auto"].report.summary().splitlines(), convs["auto"].report.summary(timing=False).splitlines()
+    assert [line for line in full if not line.startswith("  time ")] == steady and len(full) == len(steady) + 1
 
 
 def test_cli_accepts_the_option(tmp_path, pendulum):
