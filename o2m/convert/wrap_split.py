@@ -300,8 +300,8 @@ def _describe(rec: WrapSplit, kept: list[str], sites: list[str]) -> str:
     if idx:
         scatter = ", ".join(f"{rec.scatter_mm[k]:.3g}" for k in idx)
         how = (f"split by {len(idx)} via point(s) on {', '.join(rec.bodies[k] for k in idx)} between "
-               f"{' and '.join(kept)} (touched together at {[rec.together[k] for k in idx]} poses; OpenSim's path "
-               f"between them runs {scatter} mm RMS from them)")
+               f"{' and '.join(kept)} (touched together at {', '.join(str(rec.together[k]) for k in idx)} poses; "
+               f"OpenSim's path between them runs {scatter} mm RMS from them)")
     else:
         how = f"{' and '.join(kept) or 'no wrap'} kept, no via point"
     out = [f"wraps {', '.join(rec.order or rec.wraps)} share {rec.points[0]}-{rec.points[1]}: {how}"]
