@@ -14,7 +14,7 @@ import numpy as np
 from o2m.mj.posing import JointEquality, joint_equality_plan, joint_qpos_address, pose_mujoco
 
 __all__ = ["FD_STEP", "coordinate_direction", "mujoco_moment_arms", "mujoco_tendon_lengths", "qpos_to_dof",
-           "tendon_jacobian"]
+           "tendon_jacobian", "tendon_length_jumps"]
 
 #: Central-difference step of the MuJoCo moment arms (radians or metres).
 FD_STEP = 1e-6
@@ -111,3 +111,33 @@ def mujoco_moment_arms(
         dv = qpos_to_dof(model, coordinate_direction(model, qpos, joint_qpos_address(model, c), plan))
         out[:, k] = -(jac @ dv)
     return out
+
+
+def tendon_length_jumps(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far each tendon's length change over a step is from what its rate explains.
+
+    A path that flips to the other side of a wrap geom between two steps changes length by
+    millimetres to centimetres in one step; a smooth path changes by the trapezoid of its rate
+    ``ten_J @ qvel`` at the two ends, within O(dt^3).
+
+    Args:
+        qpos: shape (T, nq), the states of a trajectory at steps of ``model.opt.timestep``.
+        qvel: shape (T, nv), the velocities at the same samples.
+    Returns:
+        ``(excess, at)``: shape (ntendon,) each, the largest ``|dL - dt (v_k + v_k+1) / 2|`` over
+        the steps (metres) and the index k of the step where it occurs.
+    """
+    qpos, qvel = np.atleast_2d(qpos), np.atleast_2d(qvel)
+    data = mujoco.MjData(model)
+    lengths = np.empty((len(qpos), model.ntendon))
+    rates = np.empty_like(lengths)
+    for k, (q, v) in enumerate(zip(qpos, qvel, strict=True)):
+        data.qpos[:], data.qvel[:] = q, v
+        mujoco.mj_fwdPosition(model, data)
+        lengths[k] = data.ten_length
+        rates[k] = tendon_jacobian(model, data) @ v
+    dt = model.opt.timestep
+    excess = np.abs(np.diff(lengths, axis=0) - 0.5 * dt * (rates[1:] + rates[:-1]))
+    if len(excess) == 0:
+        return np.zeros(model.ntendon), np.zeros(model.ntendon, dtype=int)
+    return excess.max(axis=0), excess.argmax(axis=0)
