@@ -14,7 +14,7 @@ import numpy as np
 from o2m.mj.posing import JointEquality, joint_equality_plan, joint_qpos_address, pose_mujoco
 
 __all__ = ["FD_STEP", "coordinate_direction", "mujoco_moment_arms", "mujoco_tendon_lengths", "qpos_to_dof",
-           "tendon_jacobian", "tendon_length_jumps"]
+           "tendon_jacobian", "tendon_length_jumps", "tendon_length_steps"]
 
 #: Central-difference step of the MuJoCo moment arms (radians or metres).
 FD_STEP = 1e-6
@@ -113,31 +113,41 @@ def mujoco_moment_arms(
     return out
 
 
-def tendon_length_jumps(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """How far each tendon's length change over a step is from what its rate explains.
+def tendon_length_steps(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each tendon's length change between neighbouring samples, and the part of it its
+    Jacobian explains.
 
-    A path that flips to the other side of a wrap geom between two steps changes length by
-    millimetres to centimetres in one step; a smooth path changes by the trapezoid of its rate
-    ``ten_J @ qvel`` at the two ends, within O(dt^3).
+    Along a smooth path the change is the trapezoid ``(J_k + J_k+1) / 2 @ dq`` of the tendon
+    Jacobians at the two ends, within O(|dq|^3), whatever the integrator; a path that flips to
+    the other side of a wrap geom changes by millimetres to centimetres more.
 
     Args:
-        qpos: shape (T, nq), the states of a trajectory at steps of ``model.opt.timestep``.
-        qvel: shape (T, nv), the velocities at the same samples.
+        qpos: shape (T, nq), the samples of a trajectory or a sweep.
     Returns:
-        ``(excess, at)``: shape (ntendon,) each, the largest ``|dL - dt (v_k + v_k+1) / 2|`` over
-        the steps (metres) and the index k of the step where it occurs.
+        ``(change, explained)``: shape (T - 1, ntendon) each, metres.
     """
-    qpos, qvel = np.atleast_2d(qpos), np.atleast_2d(qvel)
+    qpos = np.atleast_2d(qpos)
     data = mujoco.MjData(model)
     lengths = np.empty((len(qpos), model.ntendon))
-    rates = np.empty_like(lengths)
-    for k, (q, v) in enumerate(zip(qpos, qvel, strict=True)):
-        data.qpos[:], data.qvel[:] = q, v
+    jacobians = np.empty((len(qpos), model.ntendon, model.nv))
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
         mujoco.mj_fwdPosition(model, data)
         lengths[k] = data.ten_length
-        rates[k] = tendon_jacobian(model, data) @ v
-    dt = model.opt.timestep
-    excess = np.abs(np.diff(lengths, axis=0) - 0.5 * dt * (rates[1:] + rates[:-1]))
-    if len(excess) == 0:
+        jacobians[k] = tendon_jacobian(model, data)
+    dq = np.empty((max(len(qpos) - 1, 0), model.nv))
+    for k in range(len(qpos) - 1):
+        mujoco.mj_differentiatePos(model, dq[k], 1.0, qpos[k], qpos[k + 1])
+    explained = 0.5 * np.einsum("ktv,kv->kt", jacobians[1:] + jacobians[:-1], dq)
+    return np.diff(lengths, axis=0), explained
+
+
+def tendon_length_jumps(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The largest jump of each tendon's length along ``qpos`` (T, nq): ``(excess, at)``, shape
+    (ntendon,) each, the largest ``|change - explained|`` of :func:`tendon_length_steps` (metres)
+    and the index k of the first sample of that pair."""
+    change, explained = tendon_length_steps(model, qpos)
+    if len(change) == 0:
         return np.zeros(model.ntendon), np.zeros(model.ntendon, dtype=int)
+    excess = np.abs(change - explained)
     return excess.max(axis=0), excess.argmax(axis=0)

@@ -13,13 +13,15 @@ from typing import Any
 
 import numpy as np
 
+from o2m.mj.posing import joint_qpos_address
+from o2m.mj.tendons import tendon_length_steps
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import sample_bounds
 from o2m.osim.spikes import one_pose_spikes, outlying_changes
 from o2m.validate.kinematics import jsonable
 from o2m.validate.muscles import LEN_PCT
 
-__all__ = ["continuous_tendon_front", "opensim_length_steps", "sweep_jumps"]
+__all__ = ["continuous_tendon_front", "opensim_length_steps", "sweep_jumps", "trajectory_jumps"]
 
 
 def sweep_jumps(
@@ -245,3 +247,61 @@ def continuous_tendon_front(
             "front": front}
 
 
+
+
+def trajectory_jumps(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike, qpos: np.ndarray, *,
+                     jump_atol: float = 1e-3, window: int = 25,
+                     assembly_accuracy: float | None = 1e-12) -> dict[str, Any]:
+    """Tendon lengths that jump along MuJoCo trajectories (a path flipping round its wrap), and
+    whether OpenSim's path steps between the same two poses.
+
+    Args:
+        qpos: shape (B, T, nq), MuJoCo states of B trajectories (e.g. ``Trajectories.qpos``).
+        jump_atol: a step whose length change its Jacobian leaves unexplained by more than this
+            (metres) is a jump (see :func:`o2m.mj.tendons.tendon_length_jumps`).
+        window: OpenSim shares a jump when its path steps within this many samples either side
+            (the two simulators' paths may switch sides at slightly different poses).
+    Returns a JSON-safe dict ``{"jumps": [{"tendon", "trajectory", "step", "mujoco", "opensim",
+    "opensim_step"}], "flips": [...]}``: every tendon's largest jump per trajectory above
+    ``jump_atol`` (metres), with OpenSim's length over the window around it, the independent
+    coordinates set from MuJoCo's joints: ``opensim``, its change over the window less MuJoCo's
+    smooth change there (a step or a steep stretch OpenSim shares), and ``opensim_step``, its
+    largest such change between neighbouring poses (None where OpenSim does not assemble).
+    ``flips`` keeps the jumps OpenSim does not share (``opensim`` under half of MuJoCo's jump):
+    a path round the wrong side.
+    """
+    pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    model, qpos = pair.mj_model, np.asarray(qpos, float).reshape(-1, *np.shape(qpos)[-2:])
+    adr = {c: joint_qpos_address(model, c) for c in pair.indep_names}
+    os_index = {n: i for i, (n, _, _) in enumerate(pair.matched)}
+    jumps = []
+    for b, traj in enumerate(qpos):
+        change, explained = tendon_length_steps(model, traj)
+        excess = np.abs(change - explained)
+        for t in np.flatnonzero(excess.max(axis=0, initial=0.0) > jump_atol):
+            k, name = int(np.argmax(excess[:, t])), pair.tendon_names[t]
+            row = {"tendon": name, "trajectory": b, "step": k, "mujoco": float(excess[k, t]),
+                   "opensim": None, "opensim_step": None}
+            if name in os_index:
+                lo, hi = max(k - window, 0), min(k + 1 + window, len(traj) - 1)
+                found = _opensim_steps(pair, traj[lo:hi + 1], adr, os_index[name], explained[lo:hi, t])
+                if found is not None:
+                    row["opensim"], row["opensim_step"] = found
+            jumps.append(row)
+    jumps.sort(key=lambda j: -j["mujoco"])
+    flips = [j for j in jumps if j["opensim"] is None or j["opensim"] < 0.5 * j["mujoco"]]
+    return jsonable({"osim_path": pair.osim_path, "mjcf_path": pair.mjcf_path, "jump_atol": jump_atol,
+                     "jumps": jumps, "flips": flips})
+
+
+def _opensim_steps(pair: ModelPair, poses: np.ndarray, adr: dict[str, int], index: int,
+                   explained: np.ndarray) -> tuple[float, float] | None:
+    """OpenSim's length along MuJoCo poses (n, nq) against ``explained`` (n - 1,), MuJoCo's
+    smooth change between neighbours: ``(|its change over all poses less explained's sum|,
+    its largest such step between neighbours)``, metres; None if a pose fails to assemble."""
+    try:
+        lengths = np.array([pair.os_lengths(pair.os_state({c: float(q[a]) for c, a in adr.items()}))[index]
+                            for q in poses])
+    except Exception:
+        return None
+    return float(abs(lengths[-1] - lengths[0] - explained.sum())), float(np.abs(np.diff(lengths) - explained).max())

@@ -26,7 +26,7 @@ import opensim as osim
 import pytest
 
 from o2m.mj.tendons import mujoco_moment_arms, mujoco_tendon_lengths
-from o2m.validate.jumps import opensim_length_steps, sweep_jumps
+from o2m.validate.jumps import opensim_length_steps, sweep_jumps, trajectory_jumps
 from o2m.validate.muscles import MuscleReport, compare_muscles, format_muscle_table
 from o2m.validate.sweeps import moment_arm_curve, plot_moment_arms
 
@@ -351,6 +351,28 @@ def test_sweep_finds_wrapping_flip(arm):
     assert j["mujoco"] > 5e-3 and j["opensim"] < 2e-3
     assert s["worst"]["bic"]["coordinate"] == "q_el"
     assert {x["tendon"] for x in s["jumps"]} == {"bic"}
+
+
+def _elbow_swing(xml: str) -> np.ndarray:
+    """qpos (301, nq): the elbow swung over its OpenSim range while the shoulder moves a little."""
+    m = mujoco.MjModel.from_xml_path(xml)
+    qpos = np.zeros((301, m.nq))
+    qpos[:, m.joint("q_el").qposadr[0]] = np.linspace(*JOINTS[1][-1], 301)
+    qpos[:, m.joint("q_sh").qposadr[0]] = np.linspace(0.1, 0.3, 301)
+    return qpos
+
+
+def test_trajectory_of_the_correct_twin_has_no_jump(arm):
+    s = trajectory_jumps(arm["osim"], arm["good"], _elbow_swing(arm["good"])[None])
+    assert s["jumps"] == [] and s["flips"] == []
+    json.dumps(s)
+
+
+def test_trajectory_finds_a_flip_opensim_does_not_share(arm):
+    s = trajectory_jumps(arm["osim"], arm["wrap"], _elbow_swing(arm["wrap"])[None])
+    assert [(f["tendon"], f["trajectory"]) for f in s["flips"]] == [("bic", 0)]
+    flip = s["flips"][0]
+    assert flip["mujoco"] > 5e-3 and flip["opensim_step"] < 1e-3  # OpenSim: no wrap, no step
 
 
 def test_continuous_opensim_paths_have_no_steps(arm):
