@@ -35,6 +35,7 @@ from o2m.mj.posing import load_mjcf
 from o2m.mj.simulate import controls_from_excitations, initial_state, rollout
 from o2m.osim.simulate import IntegratorSettings, ModelOutline, OpenSimRun, model_outline, run_many
 from o2m.osim.storage import read_sto
+from o2m.validate.jumps import trajectory_jumps
 
 __all__ = ["DynamicsReport", "Excitations", "compare_dynamics", "motion_excitations", "random_excitations"]
 
@@ -113,6 +114,9 @@ class DynamicsReport:
         opensim_seconds: wall-clock seconds of each OpenSim run.
         ranges: each compared coordinate's OpenSim range (min, max), shape (C, 2), rad or m; a
             model without limit forces can leave it, and the converted model is fitted inside it.
+        path_flips: MuJoCo tendon lengths that jump during the runs where OpenSim's path does not
+            (a path round the wrong side of a wrap), as :func:`o2m.validate.jumps.trajectory_jumps`
+            lists them (``trajectory`` is the set's index).
     """
 
     name: str
@@ -128,6 +132,7 @@ class DynamicsReport:
     unmatched_muscles: list[str] = field(default_factory=list)
     opensim_seconds: list[float] = field(default_factory=list)
     ranges: np.ndarray | None = None
+    path_flips: list[dict] = field(default_factory=list)
 
     @property
     def error(self) -> np.ndarray:
@@ -196,6 +201,7 @@ class DynamicsReport:
             lines.append(f"  {c:<{w}}  {unit:<4}  {mean[j]:9.4f}  {peak[j]:9.4f}  {final[j]:9.4f}  "
                          f"{100 * outside[j]:5.1f}% of samples")
         lines.append(f"  mean abs error over rotational coordinates: {self.mean_rotational_error():.4f} rad")
+        lines.append(f"  MuJoCo paths jumping where OpenSim's do not: {_flip_summary(self.path_flips)}")
         return "\n".join(lines)
 
     def plot(self, path: str | os.PathLike[str], *, max_sets: int = 5, dpi: int = 80) -> Path:
@@ -243,6 +249,17 @@ class DynamicsReport:
         else:
             fig.savefig(path, dpi=dpi)
         return path
+
+
+def _flip_summary(flips: Sequence[dict]) -> str:
+    """'none', or per tendon the sets it jumps in and its largest jump, largest first."""
+    if not flips:
+        return "none"
+    worst: dict[str, list[float]] = {}
+    for f in flips:
+        worst.setdefault(f["tendon"], []).append(f["mujoco"])
+    order = sorted(worst, key=lambda t: -max(worst[t]))
+    return ", ".join(f"{t} ({len(worst[t])} set(s), up to {1e3 * max(worst[t]):.1f} mm)" for t in order)
 
 
 def _nan_reduce(fn, values: np.ndarray) -> np.ndarray:
@@ -322,12 +339,15 @@ def compare_dynamics(osim_path: str | os.PathLike[str], mjcf_path: str | os.Path
     mj = traj.coordinates.copy()
     mj[traj.diverged] = np.nan
     ref = np.stack([_opensim_columns(run, names) for run in runs])
+    ran = np.flatnonzero(~traj.diverged)
+    flips = [{**f, "trajectory": int(ran[f["trajectory"]])}
+             for f in trajectory_jumps(osim_path, mjcf_path, traj.qpos[ran])["flips"]] if len(ran) else []
     rotational = np.array([int(model.jnt_type[model.joint(n).id]) == int(mujoco.mjtJoint.mjJNT_HINGE)
                            for n in names])
     return DynamicsReport(Path(osim_path).stem, exc.times, names, rotational, ref, mj, list(exc.labels),
                           [r.status for r in runs], [r.reason for r in runs], traj.diverged.copy(),
                           [m for m in outline.muscles if m not in actuators], [r.wall_time for r in runs],
-                          np.array([outline.ranges[n] for n in names], float))
+                          np.array([outline.ranges[n] for n in names], float), flips)
 
 
 def _opensim_columns(run: OpenSimRun, names: Sequence[str]) -> np.ndarray:

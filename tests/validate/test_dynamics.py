@@ -69,6 +69,7 @@ def test_opensim_and_mujoco_agree_on_random_excitations(pendulum):
     assert swing > 0.1
     assert rep.mean_error()[0] < 0.06 and rep.max_error()[0] < 0.16, rep.summary()
     assert "swing" in rep.summary() and "OpenSim ok" in rep.summary()
+    assert rep.path_flips == [] and "do not: none" in rep.summary()  # a straight path never jumps
 
 
 def test_a_failed_or_timed_out_opensim_run_is_reported_not_raised(pendulum):
@@ -131,3 +132,7 @@ def test_report_arithmetic_on_known_trajectories():
     np.testing.assert_allclose(rep.outside_range(), [0.0, 1 / 7])  # b = 1.5 at one of 7 reached samples
     assert rep.mean_rotational_error() == pytest.approx(0.9 / 7)
     assert "14.3% of samples" in rep.summary()
+    rep.path_flips = [{"tendon": "t1", "trajectory": 0, "mujoco": 0.002},
+                      {"tendon": "t2", "trajectory": 1, "mujoco": 0.03},
+                      {"tendon": "t1", "trajectory": 1, "mujoco": 0.004}]
+    assert "do not: t2 (1 set(s), up to 30.0 mm), t1 (2 set(s), up to 4.0 mm)" in rep.summary()
