@@ -14,11 +14,16 @@ The ghost sits at frame 1 in ``qpos0`` (its joints at 0: a joint's ``ref`` would
 motion, MuJoCo moving a joint by qpos - ref), so there the weld holds only where the frames
 coincide; :func:`pose_ghost` puts the ghost where the weld holds at any pose, and a simulation
 started elsewhere begins with the weld pulling it there. The weld is as stiff as o2m's joint
-equalities; the ghost's mass and inertia (:data:`GHOST_MASS`, :data:`GHOST_INERTIA`, its weight
-cancelled by ``gravcomp``) and its joints' armature (:data:`GHOST_ARMATURE`) are what MuJoCo 4.0
-needs to hold it stably: with 1e-6 kg m² of armature a model with a 30 N m/rad ghost diverged
-within 1.3 s of falling; with 1e-2 the coordinates' accelerations were 26 % off OpenSim's, with
-1e-4 5.3 % (tests/convert/test_bushings.py), the weld then slipping at most 0.028 m or rad.
+equalities, but MuJoCo scales a constraint's stiffness with the inertia it moves: under the
+spring's load it slips, and the slip times K is the force's error in motion. The ghost's mass
+and inertia (:data:`GHOST_MASS`, :data:`GHOST_INERTIA`, its weight cancelled by ``gravcomp``) and
+its joints' armature (:data:`GHOST_ARMATURE`, :data:`GHOST_ARMATURE_PER_STIFFNESS`) trade that
+slip against the inertia they add to the bodies: with 1e-6 kg m² of armature a 30 N m/rad ghost
+diverged within 1.3 s of falling; uniform 1e-4 left the test model's accelerations within 5.3 %
+of OpenSim's and the weld slipping up to 0.028 m or rad in a 2-s fall (ToyLandingModel, 1 s
+from its default pose: 0.054 rad); 1e-2 gave 26 % and 0.0014 rad. With the armature in
+proportion to the stiffness (now): 7.0 % and 0.011 on the test model (tests/convert/test_bushings.py),
+ToyLandingModel's rotations slipping up to 0.021 rad (back, K 50) and 0.069 rad (ankle, K 5).
 Angles in radians, lengths in metres.
 """
 
@@ -32,14 +37,18 @@ from o2m.convert.builder import EQUALITY_SOLIMP, EQUALITY_SOLREF
 from o2m.convert.force_context import BushingFit, _Context
 from o2m.transforms import OSIM_TO_MJ, Transform, matrix_to_quat, quat_to_matrix
 
-__all__ = ["GHOST_ARMATURE", "GHOST_INERTIA", "GHOST_MASS", "add_ghost", "deflection",
+__all__ = ["GHOST_ARMATURE", "GHOST_ARMATURE_PER_STIFFNESS", "GHOST_INERTIA", "GHOST_MASS", "add_ghost", "deflection",
            "ghost_joint_names", "pose_ghost"]
 
 #: The ghost body's mass (kg, its weight cancelled by ``gravcomp``) and inertia (kg m², each axis).
 GHOST_MASS = 1e-3
 GHOST_INERTIA = 1e-7
-#: Armature of each ghost joint (kg on a slide, kg m² on a hinge).
+#: Armature of each ghost joint (kg on a slide, kg m² on a hinge): at least GHOST_ARMATURE and
+#: GHOST_ARMATURE_PER_STIFFNESS (s²) times its stiffness, since the weld slips by about K θ /
+#: armature times a constant (ToyLandingModel, 1 s from its default pose, every joint 1e-4:
+#: 0.054 rad; 1e-3: 0.0055; 1e-2: 0.0014).
 GHOST_ARMATURE = 1e-4
+GHOST_ARMATURE_PER_STIFFNESS = 2e-5
 #: The ghost's joints, in their order in its body: slides then hinges.
 _AXES = (("tx", "slide", 0), ("ty", "slide", 1), ("tz", "slide", 2),
          ("rx", "hinge", 0), ("ry", "hinge", 1), ("rz", "hinge", 2))
@@ -82,7 +91,7 @@ def add_ghost(ctx: _Context, fit: BushingFit, why: str) -> str:
                                 axis=np.eye(3)[k])
         joint.springref = 0.0  # a ref would offset the joint's motion too (MuJoCo moves a joint by qpos - ref)
         joint.stiffness, joint.damping = [float(fit.stiffness[i]), 0.0, 0.0], [float(fit.damping[i]), 0.0, 0.0]
-        joint.armature = GHOST_ARMATURE
+        joint.armature = max(GHOST_ARMATURE, GHOST_ARMATURE_PER_STIFFNESS * float(fit.stiffness[i]))
         joint.limited = mujoco.mjtLimited.mjLIMITED_FALSE
         fit.ghost_joints.append(joint.name)
     inverse = f2.inverse()  # body 2's pose in the ghost's frame when the ghost is on frame 2
@@ -94,7 +103,8 @@ def add_ghost(ctx: _Context, fit: BushingFit, why: str) -> str:
     eq.solref, eq.solimp = list(EQUALITY_SOLREF), list(EQUALITY_SOLIMP)
     fit.ghost_body, fit.ghost_weld = ghost.name, eq.name
     return (f"ghost body '{ghost.name}' at frame 1 welded to frame 2, its six joints ({', '.join(fit.ghost_joints)}) "
-            f"the deflection, with its stiffness and damping; {why.removesuffix(': MuJoCo has no such spring')}")
+            f"the deflection, with its stiffness and damping (the weld slips under load: the error in motion, "
+            f"o2m.convert.bushing_ghost); {why.removesuffix(': MuJoCo has no such spring')}")
 
 
 def pose_ghost(model: mujoco.MjModel, data: mujoco.MjData, fit: BushingFit) -> None:

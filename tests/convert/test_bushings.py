@@ -292,10 +292,10 @@ def _mujoco_accelerations(xml: Path, bushing: str, states, ghosts: tuple[str, ..
 def test_ghost_bushings_move_the_coordinates_as_opensim(model_path, tmp_path):
     """A ghost body (the 'composed' bushing, rotations composed about different axes, and
     'points_damped') changes the coordinates' accelerations as OpenSim's bushing does (Δu̇ with it
-    on and off) within 6 % of their largest (measured 5.3 %: its weld's softness and its
+    on and off) within 8 % of their largest (measured 7.0 %: its weld's softness and its
     armature); posed by :func:`pose_ghost` its weld holds to round-off; 2 s of falling from a
-    pose stay finite, the welds slipping at most 0.05 (m or rad; measured 0.028, in the first
-    0.2 s, while every joint speeds up to 7 rad/s) and 0.005 at the end (measured 0.003)."""
+    pose stay finite, the welds slipping at most 0.02 (m or rad; measured 0.011, while the joints
+    speed up to 7 rad/s) and 0.005 at the end."""
     conv = convert(model_path, tmp_path / "out", convert_options(fit_mechanics=False))
     ghosts = ("composed", "points_damped")
     states = _states(6, seed=3)
@@ -303,7 +303,7 @@ def test_ghost_bushings_move_the_coordinates_as_opensim(model_path, tmp_path):
         want = _opensim_forces(model_path, name, states, accelerations=True)
         for got, expected in zip(_mujoco_accelerations(conv.xml, name, states, ghosts), want, strict=True):
             assert np.abs(expected).max() > 10.0
-            assert np.abs(got - expected).max() <= 0.06 * np.abs(expected).max()
+            assert np.abs(got - expected).max() <= 0.08 * np.abs(expected).max()
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
     d = mujoco.MjData(m)
     _posed(m, d, states[0][0], ghosts)
@@ -314,7 +314,7 @@ def test_ghost_bushings_move_the_coordinates_as_opensim(model_path, tmp_path):
     for _ in range(int(round(2.0 / m.opt.timestep))):
         mujoco.mj_step(m, d)
         worst = max(worst, _weld_error(m, d, ghosts))
-    assert np.isfinite(d.qpos).all() and worst < 0.05 and _weld_error(m, d, ghosts) < 0.005
+    assert np.isfinite(d.qpos).all() and worst < 0.02 and _weld_error(m, d, ghosts) < 0.005
 
 
 def _weld_error(m: mujoco.MjModel, d: mujoco.MjData, ghosts: tuple[str, ...]) -> float:
