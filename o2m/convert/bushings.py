@@ -22,10 +22,12 @@ isotropic translational stiffness k is, whatever the offsets do, a zero-length s
 frame origins: ½ k |p|², |p| their distance, which a spatial tendon between sites there gives
 exactly (``stiffness`` k, ``springlength`` 0). Its isotropic damping d resists all relative motion
 of the origins, a tendon's only motion along the line, so a damped one needs a tolerance.
-Deflections not linear otherwise (rotations composed across joints about different axes) are
-skipped, the reason giving the best linear fit's worst deflection error over the coordinates'
-ranges; with a ``bushing_tolerance`` (rad or m, :class:`o2m.convert.converter.ConvertOptions`) a
-fit within it converts as above. The report records every converted bushing's measured
+Deflections not linear otherwise (rotations composed across joints about different axes), and an
+isotropic spring's damping across the line between the origins, become a ghost body welded to
+frame 2 whose joints are the deflection (:mod:`o2m.convert.bushing_ghost`), the report giving the
+best linear fit's worst deflection error over the coordinates' ranges; with a
+``bushing_tolerance`` (rad or m, :class:`o2m.convert.converter.ConvertOptions`) a fit within it
+converts as above instead. The report records every converted bushing's measured
 generalized-force error (:func:`measure_bushings`).
 Angles in radians, lengths in metres.
 """
@@ -42,6 +44,7 @@ from scipy.spatial.transform import Rotation
 
 from o2m.convert.actuators import _body_site
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.bushing_ghost import add_ghost, pose_ghost
 from o2m.convert.force_context import (
     N_POSES,
     BushingFit,
@@ -77,8 +80,8 @@ _STEP = 1e-4
 
 
 def convert_bushing(ctx: _Context, el: etree._Element) -> None:
-    """BushingForce -> a joint spring, fixed tendons, a spatial tendon or nothing; or a skip with the
-    reason (see the module)."""
+    """BushingForce -> a joint spring, fixed tendons, a spatial tendon, a ghost body or nothing; an
+    OpenSim 3.x one is skipped (see the module)."""
     name = el.get("name")
     if el.find("socket_frame1") is None or el.find("socket_frame2") is None:
         _skip(ctx, el, "an OpenSim 3.x bushing (no socket_frame1/2) is not converted")
@@ -92,7 +95,8 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
     fit = BushingFit(name, coords, ends, gains, damps, *fit_deflection(ctx.builder, ends, coords))
     plan = _plan(fit, ctx.bushing_tolerance)
     if isinstance(plan, str):
-        _skip(ctx, el, plan)
+        fit.form = add_ghost(ctx, fit, plan)
+        ctx.out.bushings.append(fit)
         return
     fit.linear, spatial = plan
     fit.fit_error = float(fit.residual[fit.linear].max(initial=0.0))
@@ -113,7 +117,7 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
 
 def _plan(fit: BushingFit, tolerance: float | None) -> tuple[np.ndarray, bool] | str:
     """Which stiff or damped deflections become C q + θ0 (6,) and whether the translations become a
-    zero-length spatial tendon; or why the bushing is skipped. The angles and the offsets are
+    zero-length spatial tendon; or why neither does (it then becomes a ghost body). The angles and the offsets are
     separate terms of the force, each block taken the first way that fits: linear within
     :data:`BUSHING_LINEAR_TOLERANCE`, an isotropic translational spring, linear within ``tolerance``."""
     acting = (fit.stiffness != 0.0) | (fit.damping != 0.0)
@@ -331,6 +335,7 @@ def _mujoco_force(model: mujoco.MjModel, d: mujoco.MjData, plan, values: dict[st
 
     def qpos_at(q: np.ndarray) -> np.ndarray:
         pose_mujoco(model, d, {**values, **dict(zip(fit.coordinates, map(float, q), strict=True))}, plan=plan)
+        pose_ghost(model, d, fit)
         return d.qpos.copy()
 
     q = np.array([values[c] for c in fit.coordinates])
@@ -360,10 +365,15 @@ def measure_bushings(out: ForceConversion, model: mujoco.MjModel, builder: MjcfB
         if not fit.coordinates:
             continue
         only = _isolated(model)
+        only.body_gravcomp[:] = 0.0  # a ghost's weight cancelled is no part of the bushing's force
         for t in fit.tendons:
             tid = model.tendon(t).id
             only.tendon_stiffness[tid] = model.tendon_stiffness[tid]
             only.tendon_damping[tid] = model.tendon_damping[tid]
+        for j in fit.ghost_joints:
+            jid = model.joint(j).id
+            only.jnt_stiffness[jid] = model.jnt_stiffness[jid]
+            only.dof_damping[model.jnt_dofadr[jid]] = model.dof_damping[model.jnt_dofadr[jid]]
         d = mujoco.MjData(only)
         plan = joint_equality_plan(only)
         speeds = np.random.default_rng(1).uniform(-1.0, 1.0, size=(N_POSES, len(fit.coordinates)))
@@ -371,7 +381,8 @@ def measure_bushings(out: ForceConversion, model: mujoco.MjModel, builder: MjcfB
         for values, qdot in zip(_random_values(builder, N_POSES), speeds, strict=True):
             q = np.array([values[c] for c in fit.coordinates])
             expected = bushing_generalized_force(builder, fit, q, qdot)
-            got = _mujoco_force(only, d, plan, values, fit, qdot) if fit.tendons else np.zeros(len(q))
+            acting = fit.tendons or fit.ghost_joints
+            got = _mujoco_force(only, d, plan, values, fit, qdot) if acting else np.zeros(len(q))
             if fit.joint_spring:
                 c, gains, damps = fit.slopes, fit.stiffness * fit.linear, fit.damping * fit.linear
                 got = got - c.T @ (gains * (c @ q + fit.offsets) + damps * (c @ qdot))

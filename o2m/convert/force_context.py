@@ -165,6 +165,9 @@ class BushingFit:
     joint_spring: bool = False  # they are its one coordinate's joint spring (else fixed tendons)
     tendons: list[str] = field(default_factory=list)
     form: str = ""  # what it became, for the report
+    ghost_body: str = ""  # a ghost body welded to frame 2 (o2m.convert.bushing_ghost), else ""
+    ghost_weld: str = ""  # its weld equality
+    ghost_joints: list[str] = field(default_factory=list)  # its joints: tx, ty, tz, rx, ry, rz
 
 
 @dataclass
