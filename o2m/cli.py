@@ -237,7 +237,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "point changed")
     c.add_argument("--bushing-tolerance", type=float, default=None, metavar="RAD_OR_M",
                    help="convert a non-linear BushingForce whose best linear fit deflects at most this much "
-                        "wrong (default: only linear, exact, ones); the report records each error")
+                        "wrong to fixed tendons (default: linear ones only; the others become a ghost body "
+                        "welded to the bushing's second frame); the report records each error")
     c.add_argument("--no-moment-arm-plots", dest="moment_arm_plots", action="store_false",
                    help="skip the moment-arm sweeps against OpenSim (<stem>.moment_arms.pdf)")
     c.set_defaults(func=cmd_convert)

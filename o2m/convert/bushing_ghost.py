@@ -1,4 +1,4 @@
-"""A BushingForce no fixed tendon gives, made exact by a ghost body welded to its second frame.
+"""A BushingForce no fixed tendon gives, as a ghost body welded to its second frame.
 
 OpenSim's bushing deflection θ (6,: frame 2's X-Y-Z body-fixed angles in frame 1, rad, and its
 origin's offset in frame 1, m) is not linear in the coordinates where rotations about different
@@ -12,7 +12,8 @@ pose, through the weld, to the bodies (where the X-Y-Z angles are singular, as O
 
 The ghost sits at frame 1 in ``qpos0`` (its joints at 0: a joint's ``ref`` would offset its
 motion, MuJoCo moving a joint by qpos - ref), so there the weld holds only where the frames
-coincide; :func:`pose_ghost` puts the ghost where the weld holds at any pose, and a simulation
+coincide; :func:`pose_ghost` puts the ghost where the weld holds at any pose (the converted
+model's ``default-pose`` keyframe has every ghost posed: :func:`ghosts_posed`), and a simulation
 started elsewhere begins with the weld pulling it there. The weld is as stiff as o2m's joint
 equalities, but MuJoCo scales a constraint's stiffness with the inertia it moves: under the
 spring's load it slips, and the slip times K is the force's error in motion. The ghost's mass
@@ -39,7 +40,7 @@ from o2m.convert.force_context import BushingFit, _Context
 from o2m.transforms import OSIM_TO_MJ, Transform, matrix_to_quat, quat_to_matrix
 
 __all__ = ["GHOST_ARMATURE", "GHOST_ARMATURE_PER_STIFFNESS", "GHOST_INERTIA", "GHOST_MASS", "add_ghost", "deflection",
-           "ghost_joint_names", "pose_ghost"]
+           "ghost_joint_names", "ghosts_posed", "pose_ghost"]
 
 #: The ghost body's mass (kg, its weight cancelled by ``gravcomp``) and inertia (kg m², each axis).
 GHOST_MASS = 1e-3
@@ -124,6 +125,16 @@ def pose_ghost(model: mujoco.MjModel, data: mujoco.MjData, fit: BushingFit) -> N
     for name, value in zip(ghost_joint_names(fit), theta, strict=True):
         data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
     mujoco.mj_kinematics(model, data)
+
+
+def ghosts_posed(model: mujoco.MjModel, fits: list[BushingFit]) -> np.ndarray:
+    """``qpos0`` (nq,) with every ghost of ``fits`` where its weld holds."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    mujoco.mj_kinematics(model, data)
+    for fit in fits:
+        pose_ghost(model, data, fit)
+    return data.qpos.copy()
 
 
 def _world(data: mujoco.MjData, body: int) -> Transform:

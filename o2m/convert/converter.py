@@ -21,6 +21,7 @@ import numpy as np
 
 from o2m.convert import forces
 from o2m.convert.builder import MjcfBuilder
+from o2m.convert.bushing_ghost import ghosts_posed
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.constraints import add_constraints
 from o2m.convert.islands import disable_single_island
@@ -80,8 +81,9 @@ class ConvertOptions:
             every point it changed).
         bushing_tolerance: the worst deflection error (rad or m) a BushingForce's best linear fit
             in its coordinates may have and still convert to fixed tendons or a joint spring
-            (:mod:`o2m.convert.bushings`). None, the default, converts only linear ones (exact);
-            the report records each approximated bushing's measured error.
+            (:mod:`o2m.convert.bushings`). None, the default, converts linear ones to those and
+            the others to a ghost body welded to the bushing's second frame
+            (:mod:`o2m.convert.bushing_ghost`); the report records each bushing's measured error.
         chain_shortcuts: hang a body that only translates relative to an ancestor as one
             coordinate moves (its chain's rotations cancel: MoBL-ARMS's scapphant) from that
             ancestor by slides of the coordinate (:mod:`o2m.convert.shortcuts`): the same poses
@@ -181,10 +183,10 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
         xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), model.qpos0)
         _check_finite(xml_text, osim)
         xml_path.write_text(xml_text)
-        try:  # the written file, as a user will load it
-            written = mujoco.MjModel.from_xml_path(str(xml_path))
-        except Exception as exc:
-            raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
+        written = _load_written(xml_path, osim)
+        if any(b.ghost_body for b in force_conv.bushings):  # posed on the written numbers, to round-off
+            xml_path.write_text(_default_pose(xml_text, ghosts_posed(written, force_conv.bushings)))
+            written = _load_written(xml_path, osim)
         forces.measure(force_conv, written, osim, builder)
         warnings = massless + [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
         warnings += _divergence(written)
@@ -268,6 +270,14 @@ def _default_pose(xml: str, qpos0) -> str:
         if key.get("name") == "default-pose":
             key.set("qpos", mjcf_text.number_text(qpos0))
     return mjcf_text.to_text(root)
+
+
+def _load_written(xml_path: Path, osim: Path) -> mujoco.MjModel:
+    """The written file, as a user will load it."""
+    try:
+        return mujoco.MjModel.from_xml_path(str(xml_path))
+    except Exception as exc:
+        raise O2MError(f"{osim}: the written MJCF does not load in MuJoCo: {exc}") from exc
 
 
 def _check_finite(xml: str, osim: Path) -> None:

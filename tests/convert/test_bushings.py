@@ -293,7 +293,8 @@ def test_ghost_bushings_move_the_coordinates_as_opensim(model_path, tmp_path):
     """A ghost body (the 'composed' bushing, rotations composed about different axes, and
     'points_damped') changes the coordinates' accelerations as OpenSim's bushing does (Δu̇ with it
     on and off) within 8 % of their largest (measured 7.0 %: its weld's softness and its
-    armature); posed by :func:`pose_ghost` its weld holds to round-off; 2 s of falling from a
+    armature); posed by :func:`pose_ghost` (and in the default-pose keyframe) its weld holds to
+    round-off; 2 s of falling from a
     pose stay finite, the welds slipping at most 0.02 (m or rad; measured 0.011, while the joints
     speed up to 7 rad/s) and 0.005 at the end."""
     conv = convert(model_path, tmp_path / "out", convert_options(fit_mechanics=False))
@@ -306,6 +307,9 @@ def test_ghost_bushings_move_the_coordinates_as_opensim(model_path, tmp_path):
             assert np.abs(got - expected).max() <= 0.08 * np.abs(expected).max()
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
     d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("default-pose").id)
+    mujoco.mj_forward(m, d)
+    assert _weld_error(m, d, ghosts) < 1e-9  # the keyframe has the ghosts posed
     _posed(m, d, states[0][0], ghosts)
     d.qvel[:] = 0.0
     mujoco.mj_forward(m, d)
