@@ -30,6 +30,7 @@ from o2m.convert.muscles import fit_muscles
 from o2m.convert.pathforces import PATH_FORCE_MODES
 from o2m.convert.records import Approximation
 from o2m.convert.report import ConversionReport
+from o2m.convert.step_options import choose_step_options
 from o2m.convert.tendons import add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry
 from o2m.convert.wrap_choice import split_variants
@@ -172,10 +173,12 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
         forces.fit_ligaments(force_conv, spec, model, builder)
         forces.fit_contacts(force_conv, spec, model, builder)
         spec.add_key(name="default-pose", qpos=model.qpos0.copy())
-        if disable_single_island(spec, spec.compile()):
+        final = spec.compile()
+        if disable_single_island(spec, final):
             result.notes.append("constraint islands disabled (<flag island=\"disable\"/>): the degrees of freedom "
                                 "are one kinematic tree, or trees tied together by joint equalities, so MuJoCo's "
                                 "island search would always find one island")
+        result.notes += choose_step_options(spec, final, mujoco.__version__)
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
         xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), model.qpos0)
