@@ -323,13 +323,15 @@ _CONVERTER_SOURCES = ("convert", "osim", "mj", "transforms.py", "errors.py")
 
 def conversion_key(osim: str | Path, options: ConvertOptions) -> str:
     """A hash of what decides a conversion's output: the ``.osim`` file's bytes, ``options``, o2m's
-    version and the converter's source files (sha256, hex)."""
+    and MuJoCo's versions (:mod:`o2m.convert.step_options` depends on the latter) and the
+    converter's source files (sha256, hex)."""
     import o2m
 
     h = hashlib.sha256()
     h.update(Path(osim).read_bytes())
     h.update(repr(options).encode())
     h.update(o2m.__version__.encode())
+    h.update(mujoco.__version__.encode())
     root = Path(__file__).resolve().parents[1]
     for name in _CONVERTER_SOURCES:
         for f in sorted((root / name).rglob("*.py")) if (root / name).is_dir() else [root / name]:

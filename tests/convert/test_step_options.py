@@ -104,3 +104,14 @@ def test_the_chosen_settings_step_the_same_trajectory():
         runs.append(data.qpos.copy())
     assert np.max(np.abs(runs[0] - runs[1])) < 1e-9
     assert np.max(np.abs(runs[0])) > 0.1  # it moved
+
+
+def test_the_conversion_key_changes_with_the_mujoco_version(tmp_path, monkeypatch):
+    from o2m.convert import ConvertOptions
+    from o2m.convert.converter import conversion_key
+
+    osim = tmp_path / "m.osim"
+    osim.write_text("<OpenSimDocument/>")
+    now = conversion_key(osim, ConvertOptions())
+    monkeypatch.setattr(mujoco, "__version__", mujoco.__version__ + ".1")
+    assert conversion_key(osim, ConvertOptions()) != now
