@@ -201,7 +201,7 @@ def format_speed(speed: dict) -> str:
              f"{speed.get('opensim_cpu_median_s', float('nan')):.2f} s); {speed['machine']}, "
              f"load average {speed.get('load_average', float('nan')):.1f}, MuJoCo {speed['mujoco_version']}",
              f"{'model':>12} {'nv':>4} {'eq':>4} {'1-s sim ms (p10-p90)':>22} {'cpu ms':>7} {'/conv':>6} "
-             f"{'ratio':>6} {'cpu':>6} {'C loop ms':>9} {'ratio':>6} "
+             f"{'ratio':>6} {'cpu':>6} {'C loop ms (cpu)':>15} {'ratio':>6} "
              f"{'rollout/s 1 thr':>15} {'all':>6} {'/core':>6} {'scaling':>7} {'/cpu-s 1 thr':>12} {'all':>6}"]
     for name, m in speed["models"].items():
         per = m["rollout_per_s"]
@@ -209,7 +209,8 @@ def format_speed(speed: dict) -> str:
                      f"({m['p10_s'] * 1e3:5.1f}-{m['p90_s'] * 1e3:5.1f}) {m['cpu_median_s'] * 1e3:>7.1f} "
                      f"{m.get('cpu_vs_converted', float('nan')):>6.3f} "
                      f"{m['ratio']:>6.0f} {m.get('cpu_ratio', float('nan')):>6.0f} "
-                     f"{m['c_loop_median_s'] * 1e3:>9.1f} {m.get('c_loop_ratio', float('nan')):>6.0f} "
+                     f"{m['c_loop_median_s'] * 1e3:>8.1f} ({m['c_loop_cpu_median_s'] * 1e3:>4.1f}) "
+                     f"{m.get('c_loop_ratio', float('nan')):>6.0f} "
                      f"{per['1']:>15.1f} "
                      f"{per[max(per, key=int)]:>6.1f} "
                      f"{m['rollout_per_s_per_core']:>6.1f} {m['rollout_scaling']:>7.2f} "
