@@ -31,6 +31,7 @@ from o2m.convert.muscles import fit_muscles
 from o2m.convert.pathforces import PATH_FORCE_MODES
 from o2m.convert.records import Approximation
 from o2m.convert.report import ConversionReport
+from o2m.convert.step_options import choose_step_options
 from o2m.convert.tendons import add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry
 from o2m.convert.wrap_choice import split_variants
@@ -174,10 +175,12 @@ def convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions = Con
         forces.fit_ligaments(force_conv, spec, model, builder)
         forces.fit_contacts(force_conv, spec, model, builder)
         spec.add_key(name="default-pose", qpos=model.qpos0.copy())
-        if disable_single_island(spec, spec.compile()):
+        final = spec.compile()
+        if disable_single_island(spec, final):
             result.notes.append("constraint islands disabled (<flag island=\"disable\"/>): the degrees of freedom "
                                 "are one kinematic tree, or trees tied together by joint equalities, so MuJoCo's "
                                 "island search would always find one island")
+        result.notes += choose_step_options(spec, final, mujoco.__version__)
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
         xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), model.qpos0)
@@ -330,13 +333,15 @@ _CONVERTER_SOURCES = ("convert", "osim", "mj", "transforms.py", "errors.py")
 
 def conversion_key(osim: str | Path, options: ConvertOptions) -> str:
     """A hash of what decides a conversion's output: the ``.osim`` file's bytes, ``options``, o2m's
-    version and the converter's source files (sha256, hex)."""
+    and MuJoCo's versions (:mod:`o2m.convert.step_options` depends on the latter) and the
+    converter's source files (sha256, hex)."""
     import o2m
 
     h = hashlib.sha256()
     h.update(Path(osim).read_bytes())
     h.update(repr(options).encode())
     h.update(o2m.__version__.encode())
+    h.update(mujoco.__version__.encode())
     root = Path(__file__).resolve().parents[1]
     for name in _CONVERTER_SOURCES:
         for f in sorted((root / name).rglob("*.py")) if (root / name).is_dir() else [root / name]:

@@ -6,10 +6,13 @@ converted paper model first; e.g. also an earlier conversion or the wrapped MoBL
 
 * a plain ``mj_step`` loop on one thread, each set ``repeats`` times: median and 10th-90th
   percentile of the wall-clock time of one 1-s simulation, and the median thread CPU time (what a
-  busy machine's other processes do not inflate). The models' loops are interleaved, set by set
-  (:func:`interleaved_loops`), so that a load that comes and goes weighs on all of them alike, and
-  each other model's thread CPU time is also given as the median ratio to the converted model's
-  on the same set and repeat (``cpu_vs_converted``);
+  busy machine's other processes do not inflate); and the same simulation as one
+  :func:`mujoco.rollout.rollout` on the calling thread (``c_loop_*``: MuJoCo's own C loop over the
+  steps, without Python's per-step call and control copy, about 3.5 % of a MoBL-ARMS step). The
+  models' loops are interleaved, set by set (:func:`interleaved_loops`), so that a load that
+  comes and goes weighs on all of them alike, and each other model's thread CPU time is also
+  given as the median ratio to the converted model's on the same set and repeat
+  (``cpu_vs_converted``);
 * the per-step time and its breakdown by MuJoCo's own timers (``mjData.timer``, microseconds);
 * their ratio to OpenSim's, by wall clock and by thread CPU time;
 * batched :func:`o2m.mj.simulate.rollout` throughput (simulations per second) on 1 thread and on
@@ -27,6 +30,7 @@ from collections.abc import Mapping
 
 import mujoco
 import numpy as np
+from mujoco import rollout as mj_rollout
 
 __all__ = ["format_speed", "interleaved_loops", "measure_model", "measure_speed"]
 
@@ -48,22 +52,33 @@ def _one_loop(model: mujoco.MjModel, data: mujoco.MjData, state: np.ndarray,
     return time.perf_counter() - wall, time.thread_time() - cpu
 
 
+def _one_c_loop(model: mujoco.MjModel, data: mujoco.MjData, state: np.ndarray,
+                controls: np.ndarray) -> tuple[float, float]:
+    """Wall and thread CPU seconds of the same simulation as :func:`_one_loop`, stepped by
+    :func:`mujoco.rollout.rollout` on this thread (MuJoCo's C loop)."""
+    wall, cpu = time.perf_counter(), time.thread_time()
+    mj_rollout.rollout(model, data, state[None], controls[None])
+    return time.perf_counter() - wall, time.thread_time() - cpu
+
+
 def interleaved_loops(cases: Mapping[str, tuple[mujoco.MjModel, np.ndarray, np.ndarray]],
                       repeats: int) -> dict[str, np.ndarray]:
-    """Wall and thread CPU seconds, shape (repeats * S, 2), of every set of every case (name ->
-    (model, init (S, nstate), controls (S, T - 1, nu)); the same S for all), the cases' loops
-    taking turns set by set, each case warmed up once first."""
+    """Seconds, shape (repeats * S, 4), of every set of every case (name -> (model, init (S,
+    nstate), controls (S, T - 1, nu)); the same S for all): the ``mj_step`` loop's wall and thread
+    CPU time, then the C loop's (:func:`_one_c_loop`); the cases' loops taking turns set by set,
+    each case warmed up once first."""
     datas = {name: mujoco.MjData(model) for name, (model, _, _) in cases.items()}
     for name, (model, init, controls) in cases.items():
         _one_loop(model, datas[name], init[0], controls[0])
     n_sets = {len(init) for _, init, _ in cases.values()}
     if len(n_sets) != 1:
         raise ValueError(f"interleaved_loops needs the same number of sets for every case, not {sorted(n_sets)}")
-    runs: dict[str, list[tuple[float, float]]] = {name: [] for name in cases}
+    runs: dict[str, list[tuple[float, ...]]] = {name: [] for name in cases}
     for _ in range(repeats):
         for i in range(next(iter(n_sets))):
             for name, (model, init, controls) in cases.items():
-                runs[name].append(_one_loop(model, datas[name], init[i], controls[i]))
+                runs[name].append(_one_loop(model, datas[name], init[i], controls[i])
+                                  + _one_c_loop(model, datas[name], init[i], controls[i]))
     return {name: np.array(r) for name, r in runs.items()}
 
 
@@ -98,8 +113,8 @@ def measure_model(model: mujoco.MjModel, init: np.ndarray, controls: np.ndarray,
                   batch: int = 64, runs: np.ndarray | None = None) -> dict:
     """Speed of ``model`` on the sets ``init`` (S, nstate) and ``controls`` (S, T - 1, nu): see the
     module docstring; seconds per 1-s simulation, microseconds per step, simulations per second.
-    ``runs``: its loops' (wall, CPU) seconds (n, 2) already timed (:func:`interleaved_loops`), else
-    timed here, each set ``repeats`` times."""
+    ``runs``: its loops' seconds (n, 4) already timed (:func:`interleaved_loops`), else timed here,
+    each set ``repeats`` times."""
     if runs is None:
         runs = interleaved_loops({"model": (model, init, controls)}, repeats)["model"]
     idx = np.resize(np.arange(len(init)), batch)
@@ -110,6 +125,7 @@ def measure_model(model: mujoco.MjModel, init: np.ndarray, controls: np.ndarray,
             "wrap_items": int(model.nwrap), "runs": len(runs),
             "median_s": float(np.median(runs[:, 0])), "p10_s": float(np.percentile(runs[:, 0], 10)),
             "p90_s": float(np.percentile(runs[:, 0], 90)), "cpu_median_s": float(np.median(runs[:, 1])),
+            "c_loop_median_s": float(np.median(runs[:, 2])), "c_loop_cpu_median_s": float(np.median(runs[:, 3])),
             "step_us": step_breakdown(model, init[0], controls[0]),
             "rollout_per_s": {str(n): v for n, v in per_s.items()},
             "rollout_per_s_per_core": per_s[cores] / cores, "rollout_scaling": per_s[cores] / per_s[1],
@@ -164,11 +180,13 @@ def measure_speed(data_dir: str = "data/mobl_arms", *, n_sets: int = 5, model_di
     for name, m in measured.items():
         m["ratio"] = os_med / m["median_s"]
         m["cpu_ratio"] = os_cpu_med / m["cpu_median_s"]
+        m["c_loop_ratio"] = os_med / m["c_loop_median_s"]
         m["cpu_vs_converted"] = float(np.median(runs[name][:, 1] / runs["converted"][:, 1]))
     main = measured["converted"]
     return {"sets": sets, "opensim_s": os_times, "opensim_median_s": os_med, "opensim_cpu_s": os_cpu,
             "opensim_cpu_median_s": os_cpu_med,
             "mujoco_median_s": main["median_s"], "ratio": main["ratio"], "rollout_batch": batch,
+            "mujoco_c_loop_median_s": main["c_loop_median_s"], "c_loop_ratio": main["c_loop_ratio"],
             "rollout_per_s": main["rollout_per_s"][str(max(1, os.cpu_count() or 1))], "models": measured,
             "rollout_threads": os.cpu_count(), "opensim_dataset_median_wall_s": float(np.median(ds.wall_time[ds.ok])),
             "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
@@ -183,14 +201,17 @@ def format_speed(speed: dict) -> str:
              f"{speed.get('opensim_cpu_median_s', float('nan')):.2f} s); {speed['machine']}, "
              f"load average {speed.get('load_average', float('nan')):.1f}, MuJoCo {speed['mujoco_version']}",
              f"{'model':>12} {'nv':>4} {'eq':>4} {'1-s sim ms (p10-p90)':>22} {'cpu ms':>7} {'/conv':>6} "
-             f"{'ratio':>6} {'cpu':>6} "
+             f"{'ratio':>6} {'cpu':>6} {'C loop ms (cpu)':>15} {'ratio':>6} "
              f"{'rollout/s 1 thr':>15} {'all':>6} {'/core':>6} {'scaling':>7} {'/cpu-s 1 thr':>12} {'all':>6}"]
     for name, m in speed["models"].items():
         per = m["rollout_per_s"]
         lines.append(f"{name:>12} {m['nv']:>4} {m['equalities']:>4} {m['median_s'] * 1e3:>8.1f} "
                      f"({m['p10_s'] * 1e3:5.1f}-{m['p90_s'] * 1e3:5.1f}) {m['cpu_median_s'] * 1e3:>7.1f} "
                      f"{m.get('cpu_vs_converted', float('nan')):>6.3f} "
-                     f"{m['ratio']:>6.0f} {m.get('cpu_ratio', float('nan')):>6.0f} {per['1']:>15.1f} "
+                     f"{m['ratio']:>6.0f} {m.get('cpu_ratio', float('nan')):>6.0f} "
+                     f"{m['c_loop_median_s'] * 1e3:>8.1f} ({m['c_loop_cpu_median_s'] * 1e3:>4.1f}) "
+                     f"{m.get('c_loop_ratio', float('nan')):>6.0f} "
+                     f"{per['1']:>15.1f} "
                      f"{per[max(per, key=int)]:>6.1f} "
                      f"{m['rollout_per_s_per_core']:>6.1f} {m['rollout_scaling']:>7.2f} "
                      f"{m['rollout_per_cpu_s']['1']:>12.1f} {m['rollout_per_cpu_s'][max(per, key=int)]:>6.1f}")

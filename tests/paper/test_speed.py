@@ -23,6 +23,7 @@ def test_measure_model_reports_every_run_timer_and_thread_count():
     m = measure_model(model, init, controls, repeats=2, batch=4)
     assert m["runs"] == 6 and m["nv"] == 1 and m["equalities"] == 0
     assert m["p10_s"] <= m["median_s"] <= m["p90_s"]
+    assert m["c_loop_median_s"] > 0 and m["c_loop_cpu_median_s"] > 0
     assert set(m["step_us"]) == {name.lower() for name in BREAKDOWN}
     assert m["step_us"]["step"] > 0 and "1" in m["rollout_per_s"] and "1" in m["rollout_per_cpu_s"]
     m["ratio"] = 1000.0
@@ -39,7 +40,7 @@ def test_interleaved_loops_time_every_set_of_every_model_and_refuse_unequal_sets
     controls = np.random.default_rng(1).uniform(-1, 1, (2, 20, 1))
     runs = interleaved_loops({"a": (pendulum, init, controls), "b": (heavier, init, controls)}, repeats=3)
     assert set(runs) == {"a", "b"}
-    assert all(r.shape == (6, 2) and np.all(r > 0) for r in runs.values())
+    assert all(r.shape == (6, 4) and np.all(r > 0) for r in runs.values())
     m = measure_model(pendulum, init, controls, batch=2, runs=runs["a"])
     assert m["runs"] == 6
     with pytest.raises(ValueError, match="same number of sets"):
