@@ -56,7 +56,7 @@ import numpy as np
 from o2m.convert.muscles import fit_muscles
 from o2m.mj.muscle import active_force_length, force_velocity, integrate_activations, passive_force
 from o2m.mj.posing import joint_equality_plan
-from o2m.mj.simulate import STATE_SPEC, initial_state
+from o2m.mj.simulate import STATE_SPEC, _dofadr_of_qadr, initial_state
 from o2m.mj.tendons import tendon_jacobian
 from o2m.parallel import map_with_progress
 
@@ -116,7 +116,7 @@ class ForceSamples:
 def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.ndarray, activations: np.ndarray,
                   forces: np.ndarray, coordinate_names: Sequence[str], muscles: Sequence[str], *,
                   stride: int = 2, excitations: np.ndarray | None = None,
-                  weight_coordinates: Sequence[str] | None = None) -> ForceSamples:
+                  weight_coordinates: Sequence[str] | None = None, weighting: str = "moment_arm") -> ForceSamples:
     """MuJoCo actuator lengths and velocities at every ``stride``-th OpenSim state.
 
     Args:
@@ -132,7 +132,14 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
         weight_coordinates: given (names of joints), each sample's residual weight is the norm of
             the muscle's moment arms about them there (MuJoCo's), scaled to RMS 1 per muscle (1 for
             a muscle with no arm about them): the fit then minimises the torque error.
+        weighting: ``"moment_arm"`` (above) or ``"acceleration"``: the norm of the accelerations
+            of those joints per newton of the muscle's force, ``M⁻¹ r`` with ``M`` the inertia
+            and ``r`` the moment arms of the joints with every equality-driven joint (couplings,
+            path carriers) moving along (rad/s² per N), scaled to RMS 1 per muscle: states where
+            a force error moves a light joint (pro_sup) count more.
     """
+    if weighting not in ("moment_arm", "acceleration"):
+        raise ValueError(f"weighting must be 'moment_arm' or 'acceleration', not {weighting!r}")
     data = mujoco.MjData(model)
     ids = np.array([model.actuator(m).id for m in muscles])
     tendons = model.actuator_trnid[ids, 0]
@@ -148,7 +155,11 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
             mujoco.mj_setState(model, data, x, STATE_SPEC)
             mujoco.mj_fwdPosition(model, data)
             mujoco.mj_fwdVelocity(model, data)
-            arm = np.linalg.norm(tendon_jacobian(model, data)[np.ix_(tendons, dofs)], axis=1) if dofs else None
+            arm = None
+            if dofs and weighting == "acceleration":
+                arm = _acceleration_per_newton(model, data, plan, dofs, tendons)
+            elif dofs:
+                arm = np.linalg.norm(tendon_jacobian(model, data)[np.ix_(tendons, dofs)], axis=1)
             rows.append((data.actuator_length[ids].copy(), data.actuator_velocity[ids].copy(),
                          activations[b, k], forces[b, k], b, k, arm))
     if not rows:
@@ -167,6 +178,33 @@ def sample_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
                         np.array([r[2] for r in rows], float), np.array([r[3] for r in rows], float),
                         np.array([r[4] for r in rows]), np.array([r[5] for r in rows]), controls, initial,
                         float(model.opt.timestep), weight)
+
+
+def _velocity_map(model: mujoco.MjModel, data: mujoco.MjData, plan: list, dofs: Sequence[int]) -> np.ndarray:
+    """Joint velocities (nv, len(dofs)) per unit speed of each of ``dofs``, the equality-driven joints
+    following by the chain rule at ``data.qpos`` (as :func:`o2m.mj.simulate.initial_state` sets speeds)."""
+    P = np.zeros((model.nv, len(dofs)))
+    P[list(dofs), np.arange(len(dofs))] = 1.0
+    for e in plan:  # in dependency order
+        d1 = _dofadr_of_qadr(model, e.qadr1)
+        if e.qadr2 is None:
+            P[d1] = 0.0
+            continue
+        x, c = float(data.qpos[e.qadr2]) - e.ref2, e.coef
+        P[d1] = (c[1] + x * (2 * c[2] + x * (3 * c[3] + x * 4 * c[4]))) * P[_dofadr_of_qadr(model, e.qadr2)]
+    return P
+
+
+def _acceleration_per_newton(model: mujoco.MjModel, data: mujoco.MjData, plan: list, dofs: Sequence[int],
+                             tendons: np.ndarray) -> np.ndarray:
+    """Norm of the accelerations of ``dofs`` (rad/s² per N) a unit pull of each tendon gives at rest,
+    the driven joints moving along: ``|(Pᵀ M P)⁻¹ Pᵀ Jᵀ|`` per tendon, shape (len(tendons),).
+    Needs ``mj_fwdPosition`` done on ``data``."""
+    P = _velocity_map(model, data, plan, dofs)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    arms = tendon_jacobian(model, data)[tendons] @ P  # (n_tendons, len(dofs)) m per rad
+    return np.linalg.norm(np.linalg.solve(P.T @ M @ P, arms.T), axis=0)
 
 
 def pulling_force(model: mujoco.MjModel, muscle: str, length, velocity, activation) -> np.ndarray:

@@ -185,3 +185,30 @@ def test_sampled_weights_are_the_moment_arms_scaled_to_rms_one():
     s = sample_states(model, q, zeros, zeros, zeros, ["x"], ["m"], stride=1, weight_coordinates=["x"])
     np.testing.assert_allclose(s.weight, 1.0)
     np.testing.assert_allclose(s.length[:, 0], q[0, :, 0])
+
+
+def test_acceleration_weights_are_what_a_unit_pull_does_to_the_joint():
+    from o2m.mj.simulate import STATE_SPEC, initial_state
+    from tests.paper.test_fitting import pendulum
+
+    model = pendulum(0.1)  # a hinge lifted by a muscle, and a joint an equality couples to it (coef 0.5)
+    q = np.linspace(-0.6, 0.6, 7)[None, :, None]
+    zeros = np.zeros_like(q)
+    s = sample_states(model, q, zeros, zeros, zeros, ["swing"], ["lifter"], stride=1, weight_coordinates=["swing"],
+                      weighting="acceleration")
+    data, pulled = mujoco.MjData(model), []
+    for angle in q[0, :, 0]:  # MuJoCo's own answer: the swing's acceleration per newton on the tendon
+        acc = []
+        for force in (0.0, 1.0):
+            mujoco.mj_setState(model, data, initial_state(model, {"swing": angle}), STATE_SPEC)
+            mujoco.mj_fwdPosition(model, data)
+            data.qfrc_applied[:] = force * data.ten_J[0]
+            mujoco.mj_forward(model, data)
+            acc.append(data.qacc[0])
+        pulled.append(abs(acc[1] - acc[0]))
+    pulled = np.array(pulled)
+    assert np.ptp(pulled) > 0.2 * pulled.mean()  # the arm changes with the angle: the test can fail
+    np.testing.assert_allclose(s.weight[:, 0], pulled / np.sqrt(np.mean(pulled**2)), rtol=0.02)
+    with pytest.raises(ValueError, match="weighting"):
+        sample_states(model, q, zeros, zeros, zeros, ["swing"], ["lifter"], weight_coordinates=["swing"],
+                      weighting="torque")
