@@ -253,7 +253,7 @@ def trajectory_jumps(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike,
                      jump_atol: float = 1e-3, window: int = 25,
                      assembly_accuracy: float | None = 1e-12) -> dict[str, Any]:
     """Tendon lengths that jump along MuJoCo trajectories (a path flipping round its wrap), and
-    whether OpenSim's path steps between the same two poses.
+    whether OpenSim's path changes as much at the same MuJoCo poses, ``window`` samples either side.
 
     Args:
         qpos: shape (B, T, nq), MuJoCo states of B trajectories (e.g. ``Trajectories.qpos``).
