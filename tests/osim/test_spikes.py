@@ -176,3 +176,20 @@ def test_mobl_corb_length_is_not_that_of_the_path_opensim_draws():
     length = runtime.geometry_path(model, "CORB").getLength(state)
     drawn = drawn_length(model, state, "CORB")
     assert drawn - length > 5 * BAND_FRACTION * length, (length, drawn)
+
+
+def test_mobl_for_mujoco_fcu_overshoot_is_an_inconsistent_length_not_a_detour():
+    """fidelity.py's worst FCU sample on MoBL_ARMS_model_for_mujoco.osim is of this kind: OpenSim's
+    path runs from the elbow past FCU-P2 to the wrist torus and back, its contacts just inside the
+    detour rule (1.21-1.23 of FCU-P1-P2 along it), and its length is neither that of its points
+    joined straight (285 mm, which the tendon follows) nor that of the path it draws (549 mm)."""
+    pose = {"elv_angle": 1.193, "shoulder_elv": 2.625, "shoulder_rot": -1.03, "elbow_flexion": 0.488,
+            "pro_sup": 0.438, "deviation": 0.317, "flexion": 1.133}
+    model, state = _posed("mobl-arms/MoBL_ARMS_model_for_mujoco.osim", pose)
+    points = current_path_points(model, state, "FCU")
+    assert path_detour(points) is None
+    fixed = np.array([p for _, wrap, p in points if wrap is None])
+    straight = float(np.linalg.norm(np.diff(fixed, axis=0), axis=1).sum())
+    length = runtime.geometry_path(model, "FCU").getLength(state)
+    drawn = drawn_length(model, state, "FCU")
+    assert length > 1.5 * straight and drawn - length > 2 * BAND_FRACTION * length, (straight, length, drawn)
