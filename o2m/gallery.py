@@ -166,7 +166,8 @@ def write_page(rows: list[GalleryRow], page: Path, *, quick: bool, poses: int) -
              f"{ok} of {len(rows)} models convert.", "",
              "K1: worst body position (mm) and orientation (°) error. K2: worst muscle-tendon length error (%). "
              "K3: moment-arm RMS error per muscle and coordinate, median / p95 / max (mm). OpenSim's own failures "
-             "(one-pose spikes, short bands, detours past a path point) are left out and counted. Seconds: "
+             "(one-pose spikes, short bands, detours past a path point, loops round a wrap, lengths not of the "
+             "path OpenSim draws) are left out and counted. Seconds: "
              "wall-clock conversion time on the machine that generated this page.", "",
              "| model | converts | K1 mm | K1 ° | K2 % | K3 median / p95 / max mm | OpenSim failures left out "
              "| seconds |",

@@ -15,11 +15,13 @@ import numpy as np
 from o2m.osim import runtime
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL
+from o2m.transforms import body_fixed_xyz
 
 __all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_CONSISTENCY", "OUTLIER",
-           "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "band_suspects", "current_path_points",
-           "one_pose_spikes", "opensim_detours", "opensim_failures", "opensim_spikes", "outlying_changes",
-           "path_detour"]
+           "LOOP_KINDS", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "band_suspects", "current_path_points",
+           "one_pose_spikes", "opensim_detours", "opensim_failures", "opensim_loops", "opensim_spikes",
+           "drawn_length", "opensim_inconsistencies", "outlying_changes", "path_detour", "path_loop", "runs_cross",
+           "wrap_runs"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -40,6 +42,9 @@ BAND_GATE = 0.05
 #: 0.38-0.68, LAT2 1.21 at 0.94 m for ~0.33 m, EDCM 3.3). At 0.1 EDCM's overshoot counted as a
 #: detour: the wrap fit left those poses out and the tendon drifted 5 % off everywhere.
 DETOUR_FRACTION = 0.25
+#: Wrap objects whose runs :func:`path_loop` checks: MuJoCo wraps their stand-ins (a cylinder
+#: across its axis, a sphere in the plane of its centre and the two run ends) in one plane.
+LOOP_KINDS = ("WrapCylinder", "WrapSphere", "WrapEllipsoid")
 #: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
 DLDQ_CONSISTENCY = 1e-3
 
@@ -151,6 +156,67 @@ def path_detour(points: Sequence[tuple[str, str | None, np.ndarray]]) -> dict[st
     return worst
 
 
+def runs_cross(kind: str, runs: np.ndarray) -> bool:
+    """Whether the two straight runs of a wrapped path, ``runs`` (4, 3): the point before the wrap,
+    the first and last contact and the point after (wrap object frame, m), cross where MuJoCo
+    wraps: projected across a cylinder's axis (z), or on the plane of a sphere's (ellipsoid's)
+    centre and the two outer points. A path that wraps a convex object and crosses itself there
+    loops round it (OpenSim's quadrant rule can take the long way round, over half a turn);
+    MuJoCo's circle wrap refuses any wrap whose runs cross (``wrap_circle``: no wrap), so no
+    wrap geom there follows it."""
+    pts = np.asarray(runs, dtype=float)
+    if kind == "WrapCylinder":
+        flat = pts[:, :2]
+    else:
+        normal = np.cross(pts[0], pts[3])
+        if np.linalg.norm(normal) < 1e-12:
+            return False
+        u = pts[0] / np.linalg.norm(pts[0])
+        v = np.cross(normal / np.linalg.norm(normal), u)
+        flat = np.c_[pts @ u, pts @ v]
+    (a, b), (c, d) = flat[[0, 1]], flat[[2, 3]]
+    det = (b[0] - a[0]) * (d[1] - c[1]) - (b[1] - a[1]) * (d[0] - c[0])
+    if abs(det) < 1e-18:
+        return False
+    s = ((c[0] - a[0]) * (d[1] - c[1]) - (c[1] - a[1]) * (d[0] - c[0])) / det
+    t = ((c[0] - a[0]) * (b[1] - a[1]) - (c[1] - a[1]) * (b[0] - a[0])) / det
+    return bool(0.0 < s < 1.0 and 0.0 < t < 1.0)
+
+
+def path_loop(runs: Sequence[tuple[str, str, np.ndarray]]) -> dict[str, Any] | None:
+    """The first wrap of ``runs`` ((wrap object name, its class name, (4, 3) runs in its frame),
+    :func:`wrap_runs`) whose runs cross (:func:`runs_cross`): {"wrap", "kind"}, or None."""
+    for wrap, kind, pts in runs:
+        if kind in LOOP_KINDS and runs_cross(kind, pts):
+            return {"wrap": wrap, "kind": kind}
+    return None
+
+
+def wrap_runs(os_model: Any, state: Any, name: str) -> list[tuple[str, str, np.ndarray]]:
+    """For each wrap on OpenSim's current path of the path force ``name`` in realised ``state``:
+    (wrap object name, its class name, (4, 3) the points before and after it and its first and
+    last contact, in the wrap object's frame, m)."""
+    opensim = runtime.opensim()
+    current = runtime.geometry_path(os_model, name).getCurrentPath(state)
+    ground = os_model.getGround()
+    out = []
+    for k in range(1, current.getSize() - 2):
+        first = opensim.PathWrapPoint.safeDownCast(current.get(k))
+        last = opensim.PathWrapPoint.safeDownCast(current.get(k + 1))
+        if first is None or last is None or first.getWrapObject().getName() != last.getWrapObject().getName():
+            continue
+        wrap = first.getWrapObject()
+        rot = body_fixed_xyz(wrap.get_xyz_body_rotation().to_numpy())
+        origin = wrap.get_translation().to_numpy()
+        pts = []
+        for j in (k - 1, k, k + 1, k + 2):
+            in_body = ground.findStationLocationInAnotherFrame(state, current.get(j).getLocationInGround(state),
+                                                               wrap.getFrame()).to_numpy()
+            pts.append(rot.T @ (in_body - origin))
+        out.append((wrap.getName(), wrap.getConcreteClassName(), np.array(pts)))
+    return out
+
+
 def current_path_points(os_model: Any, state: Any, name: str) -> list[tuple[str, str | None, np.ndarray]]:
     """OpenSim's current path of the path force ``name`` in realised ``state``: (point name, wrap
     object name or None for a path point, ground position (3,) m, OpenSim's Y-up ground)."""
@@ -181,13 +247,70 @@ def opensim_detours(pair: ModelPair, values: Mapping[str, float], muscles: Seque
     return out
 
 
+def opensim_loops(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
+                  lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
+    ``values`` loops round a wrap (:func:`path_loop`): muscle index -> {"test": "loop", "wrap",
+    "kind", "length" (m)}."""
+    out: dict[int, dict[str, Any]] = {}
+    if not len(muscles):
+        return out
+    state = pair.os_state(values)
+    for i in muscles:
+        found = path_loop(wrap_runs(pair.os_model, state, pair.matched[int(i)][0]))
+        if found is not None:
+            length = float(lengths[int(i)]) if lengths is not None else float(pair.matched[int(i)][2].getLength(state))
+            out[int(i)] = {"test": "loop", **found, "length": length}
+    return out
+
+
+def drawn_length(os_model: Any, state: Any, name: str) -> float:
+    """Length (m) of the path OpenSim draws for the path force ``name`` in realised ``state``: its
+    current path points joined straight, through the points of each wrap arc (``getWrapPath``, in
+    the wrap's body frame). Where OpenSim's ``getLength`` is consistent it is this to the arcs'
+    chords (0.2 mm on MoBL-ARMS's SUP)."""
+    opensim = runtime.opensim()
+    current = runtime.geometry_path(os_model, name).getCurrentPath(state)
+    pts = []
+    for k in range(current.getSize()):
+        wrap_point = opensim.PathWrapPoint.safeDownCast(current.get(k))
+        if wrap_point is not None:
+            arc, body = wrap_point.getWrapPath(state), wrap_point.getParentFrame()
+            pts += [body.findStationLocationInGround(state, arc.get(j)).to_numpy() for j in range(arc.getSize())]
+        pts.append(current.get(k).getLocationInGround(state).to_numpy())
+    return float(np.linalg.norm(np.diff(np.array(pts), axis=0), axis=1).sum()) if len(pts) > 1 else 0.0
+
+
+def opensim_inconsistencies(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
+                            lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim length at the pose of independent
+    ``values`` is not that of the path it draws (:func:`drawn_length`) by more than
+    :data:`BAND_FRACTION` of it: OpenSim's wrap iterations over several wraps on one segment can
+    keep an arc length from an earlier iteration (MoBL-ARMS's CORB: 183.7 mm for a drawn path of
+    253.6 mm). No tendon has a length other than that of its path. Muscle index -> {"test":
+    "inconsistent", "length", "drawn" (m)}."""
+    out: dict[int, dict[str, Any]] = {}
+    if not len(muscles):
+        return out
+    state = pair.os_state(values)
+    for i in muscles:
+        name, _, force = pair.matched[int(i)]
+        length = float(lengths[int(i)]) if lengths is not None else float(force.getLength(state))
+        drawn = drawn_length(pair.os_model, state, name)
+        if abs(drawn - length) > BAND_FRACTION * abs(length):
+            out[int(i)] = {"test": "inconsistent", "length": length, "drawn": drawn}
+    return out
+
+
 def opensim_failures(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
                      lengths: np.ndarray | None = None, banded: Sequence[int] = ()) -> dict[int, dict[str, Any]]:
     """:func:`opensim_spikes`, and for the ``banded`` muscles it does not flag,
-    :func:`opensim_detours`: every (muscle, pose) sample that is no fair test of a converted path."""
+    :func:`opensim_detours`, :func:`opensim_loops` and :func:`opensim_inconsistencies`: every
+    (muscle, pose) sample that is no fair test of a converted path."""
     out = opensim_spikes(pair, values, muscles, lengths, banded)
-    rest = [int(i) for i in banded if int(i) not in out]
-    out.update(opensim_detours(pair, values, rest, lengths) if rest else {})
+    for test in (opensim_detours, opensim_loops, opensim_inconsistencies):
+        rest = [int(i) for i in banded if int(i) not in out]
+        out.update(test(pair, values, rest, lengths) if rest else {})
     return out
 
 
