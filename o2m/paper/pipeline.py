@@ -79,6 +79,7 @@ class Settings:
     paper_generations: int | None = None  # CMA-ES generations of the paper's pipeline (None: generations)
     paper_correction_sets: int | None = None  # the first so many test sets get the paper pipeline's corrections
     force_weighting: str = "moment_arm"  # the force fit's residual weights (o2m.paper.force_fit.sample_states)
+    force_settle: int = 0  # steps of run-up before each force-fit sample (sample_states(settle=...))
 
 
 #: The budget of the stored result: the muscle force fit on every other sample of the training
@@ -384,11 +385,12 @@ def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[
     samples = sample_states(exp.model, ds.coordinates[sets], ds.speeds[sets], activations, ds.tendon_forces[sets],
                             ds.coordinate_names, ds.muscle_names, stride=settings.force_stride,
                             excitations=ds.activations.values[sets][..., cols], weight_coordinates=exp.dofs,
-                            weighting=settings.force_weighting)
+                            weighting=settings.force_weighting, settle=settings.force_settle)
     osim = models.fetch_model(ds.meta["model"], progress=False)
     forces = fit_forces(exp.model, samples, static=static_curves(osim, exp.model), max_nfev=settings.force_nfev,
                         progress=progress)
-    forces.settings.update(sets=list(map(int, sets)), stride=settings.force_stride, max_nfev=settings.force_nfev)
+    forces.settings.update(sets=list(map(int, sets)), stride=settings.force_stride, max_nfev=settings.force_nfev,
+                           settle=settings.force_settle)
     forces.save(path)
     return forces
 

@@ -22,7 +22,7 @@ import numpy as np
 from o2m.mj.posing import joint_equality_plan
 from o2m.mj.simulate import STATE_SPEC, initial_state, muscle_activations
 
-__all__ = ["SETTLE", "Windows", "window_objective", "window_starts", "window_states", "windows"]
+__all__ = ["SETTLE", "HeldJoints", "Windows", "window_objective", "window_starts", "window_states", "windows"]
 
 
 SETTLE = 10
@@ -98,7 +98,7 @@ def window_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
     times = np.arange(n_samples) * model.opt.timestep if times is None else times
     starts = window_starts(n_samples, length, stride)
     plan = joint_equality_plan(model)
-    drive = _Drive(model, coordinate_names)
+    drive = HeldJoints(model, coordinate_names)
     rows = []
     for b in range(n_sets):
         for k in starts:
@@ -115,7 +115,7 @@ def window_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
                    np.stack([r[3] for r in rows]), np.stack([r[4] for r in rows]))
 
 
-class _Drive:
+class HeldJoints:
     """Steps a model with its independent joints held on a recorded trajectory (the other joints free)."""
 
     def __init__(self, model: mujoco.MjModel, coordinate_names: Sequence[str]):
