@@ -79,6 +79,9 @@ class Settings:
     paper_generations: int | None = None  # CMA-ES generations of the paper's pipeline (None: generations)
     paper_correction_sets: int | None = None  # the first so many test sets get the paper pipeline's corrections
     force_weighting: str = "moment_arm"  # the force fit's residual weights (o2m.paper.force_fit.sample_states)
+    force_settle: int = 0  # steps of run-up before each force-fit sample (sample_states(settle=...))
+    sigma0: float = 0.1  # o2m's CMA-ES step in the unit box of the parameters (fitting.fit_cma)
+    paper_sigma0: float = 0.1  # the paper's column's
 
 
 #: The budget of the stored result: the muscle force fit on every other sample of the training
@@ -171,7 +174,8 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     force_model = forces.apply(exp.model)
     force_seconds = time.perf_counter() - t_force
     held = [i for i in exp.dataset.validation if exp.dataset.ok[i]]
-    paper_settings = replace(settings, generations=settings.paper_generations or settings.generations)
+    paper_settings = replace(settings, generations=settings.paper_generations or settings.generations,
+                             sigma0=settings.paper_sigma0)
     paper_space, paper_fit = fit_parameters(exp, exp.model, train, held, out / "parameters_paper.json",
                                             settings=paper_settings, refit=refit, progress=progress,
                                             executor=executor, early_stopping=False)
@@ -340,7 +344,8 @@ def fit_parameters(exp: Experiment, model: mujoco.MjModel, train: list[int], hel
     if ckpt.exists() and not checkpoint_matches(ckpt, space, settings.seed):
         print(f"{ckpt}: left by a fit from another start (an earlier run); starting afresh")
         ckpt.unlink()
-    fit = fit_cma(objective, seed=settings.seed, generations=settings.generations, popsize=settings.popsize,
+    fit = fit_cma(objective, seed=settings.seed, sigma0=settings.sigma0, generations=settings.generations,
+                  popsize=settings.popsize,
                   checkpoint=ckpt, progress=progress, validation=validation, early_stopping=early_stopping,
                   settings={"train_sets": list(map(int, train)), "validation_sets": list(map(int, held)),
                             "xml": exp.xml.name})
@@ -384,11 +389,12 @@ def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[
     samples = sample_states(exp.model, ds.coordinates[sets], ds.speeds[sets], activations, ds.tendon_forces[sets],
                             ds.coordinate_names, ds.muscle_names, stride=settings.force_stride,
                             excitations=ds.activations.values[sets][..., cols], weight_coordinates=exp.dofs,
-                            weighting=settings.force_weighting)
+                            weighting=settings.force_weighting, settle=settings.force_settle)
     osim = models.fetch_model(ds.meta["model"], progress=False)
     forces = fit_forces(exp.model, samples, static=static_curves(osim, exp.model), max_nfev=settings.force_nfev,
                         progress=progress)
-    forces.settings.update(sets=list(map(int, sets)), stride=settings.force_stride, max_nfev=settings.force_nfev)
+    forces.settings.update(sets=list(map(int, sets)), stride=settings.force_stride, max_nfev=settings.force_nfev,
+                           settle=settings.force_settle)
     forces.save(path)
     return forces
 

@@ -22,14 +22,16 @@ import numpy as np
 from o2m.mj.posing import joint_equality_plan
 from o2m.mj.simulate import STATE_SPEC, initial_state, muscle_activations
 
-__all__ = ["SETTLE", "Windows", "window_objective", "window_starts", "window_states", "windows"]
+__all__ = ["SETTLE", "HeldJoints", "Windows", "window_objective", "window_starts", "window_states", "windows"]
 
 
 SETTLE = 10
 """Steps (2 ms) of run-up before a window. Placed exactly on their equalities, MoBL-ARMS's path
 carriers lose the lag that transmits part of their tendons' forces in a rollout: at a rebuilt
 MuJoCo state pro_sup's acceleration moved by 600 rad/s² on average (RMS 1200, against OpenSim's
-RMS 81) and a 0.1-s window ended 0.02 rad off."""
+RMS 81) and a 0.1-s window ended 0.02 rad off. 10 steps is mid-transient for the biceps' carrier:
+on MuJoCo's own rollouts the biceps' velocity is 0.052 m/s RMS off the rollout's after 10 steps,
+0.002 after 50 (docs/paper.md, where pro_sup's error comes from); the stored window fits used 10."""
 
 
 @dataclass
@@ -98,7 +100,7 @@ def window_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
     times = np.arange(n_samples) * model.opt.timestep if times is None else times
     starts = window_starts(n_samples, length, stride)
     plan = joint_equality_plan(model)
-    drive = _Drive(model, coordinate_names)
+    drive = HeldJoints(model, coordinate_names)
     rows = []
     for b in range(n_sets):
         for k in starts:
@@ -115,7 +117,7 @@ def window_states(model: mujoco.MjModel, coordinates: np.ndarray, speeds: np.nda
                    np.stack([r[3] for r in rows]), np.stack([r[4] for r in rows]))
 
 
-class _Drive:
+class HeldJoints:
     """Steps a model with its independent joints held on a recorded trajectory (the other joints free)."""
 
     def __init__(self, model: mujoco.MjModel, coordinate_names: Sequence[str]):

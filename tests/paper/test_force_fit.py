@@ -212,3 +212,45 @@ def test_acceleration_weights_are_what_a_unit_pull_does_to_the_joint():
     with pytest.raises(ValueError, match="weighting"):
         sample_states(model, q, zeros, zeros, zeros, ["swing"], ["lifter"], weight_coordinates=["swing"],
                       weighting="torque")
+
+
+#: A hinge and a follower an equality couples to it (MuJoCo's default soft equality, so the follower
+#: lags in a rollout), and a muscle whose tendon crosses both.
+COUPLED = """
+<mujoco>
+  <option timestep="0.002" gravity="0 0 0"/>
+  <worldbody>
+    <body><joint name="swing" type="hinge" axis="0 1 0" damping="0.2"/><geom size="0.05" pos="0.3 0 0" mass="1"/>
+      <body><joint name="follow" type="hinge" axis="0 1 0"/><geom size="0.05" pos="0.2 0 0" mass="0.5"/></body>
+    </body>
+  </worldbody>
+  <tendon><fixed name="m"><joint joint="swing" coef="0.03"/><joint joint="follow" coef="0.03"/></fixed></tendon>
+  <equality><joint joint1="follow" joint2="swing" polycoef="0 0.5 0 0 0"/></equality>
+  <actuator><muscle name="m" tendon="m" force="400" lengthrange="-0.1 0.1"/></actuator>
+</mujoco>
+"""
+
+
+def test_a_run_up_samples_the_lengths_and_velocities_a_rollout_gives():
+    from o2m.activations import generate_activations
+    from o2m.mj.simulate import STATE_SPEC, controls_from_excitations, initial_state, rollout
+
+    model = mujoco.MjModel.from_xml_string(COUPLED)
+    excitations = generate_activations(["m"], 2, seed=3, p_active=1.0).values[:, :200]
+    init = np.stack([initial_state(model, {"swing": a}) for a in (-0.3, 0.3)])
+    tr = rollout(model, init, controls_from_excitations(model, ["m"], excitations), joint_names=["swing", "follow"])
+    data, own = mujoco.MjData(model), []
+    for state in tr.states[:, ::5].reshape(-1, tr.states.shape[-1]):  # the rollout's own muscle velocities
+        mujoco.mj_setState(model, data, state, STATE_SPEC)
+        mujoco.mj_forward(model, data)
+        own.append(data.actuator_velocity[0])
+    gaps = {}
+    for settle in (0, 100):
+        s = sample_states(model, tr.coordinates[..., :1], tr.qvel[..., :1], tr.act, np.zeros_like(tr.act), ["swing"],
+                          ["m"], stride=5, excitations=excitations, settle=settle)
+        gaps[settle] = np.abs(s.velocity[:, 0] - own)[s.step > 100].max()
+    assert gaps[0] > 5e-5  # m/s: rebuilt on its equality, the follower has lost its lag
+    assert gaps[100] < 0.01 * gaps[0]  # after 0.2 s of run-up it lags as in the rollout
+    with pytest.raises(ValueError, match="excitations"):
+        sample_states(model, tr.coordinates[..., :1], tr.qvel[..., :1], tr.act, np.zeros_like(tr.act), ["swing"],
+                      ["m"], settle=5)
