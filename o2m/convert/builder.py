@@ -82,11 +82,13 @@ from o2m.osim.skeleton import Joint, Skeleton, TransformAxis
 from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_quat
 
 #: Softness of every joint equality o2m writes (couplers, coupled axes, path-point carriers): the
-#: shortest time constant MuJoCo allows at the default 2 ms step, critically damped, and an
-#: impedance of 0.999, so a load deflects a coupling by about 1e-3 of what MuJoCo's default
-#: (0.02 s, 0.9..0.95) allows. OpenSim's constraints are exact.
+#: shortest time constant MuJoCo allows at the default 2 ms step, critically damped, and MuJoCo's
+#: largest impedance, 0.9999, whose regularisation (proportional to (1 - d) / d) is a tenth of
+#: 0.999's. OpenSim's constraints are exact, and a soft one is not only an error in the pose: a
+#: path carrier that lags its equality lengthens and shortens the muscles over it, which their
+#: force-velocity curves answer (docs/paper.md, the biceps over pro_sup).
 EQUALITY_SOLREF = (0.004, 1.0)
-EQUALITY_SOLIMP = (0.999, 0.999, 0.001, 0.5, 2.0)
+EQUALITY_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 #: Mass (kg) and principal inertia (kg m²) of an intermediate body carrying a joint's
 #: translations: just above what MuJoCo accepts, so the model's mass and centre of mass stay
 #: OpenSim's. Its slides move the OpenSim body hanging from it, so their inertia is that body's.
