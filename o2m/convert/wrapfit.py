@@ -10,8 +10,12 @@ moment arms match OpenSim's over sampled poses:
   each pose and MuJoCo takes its independent values, equality-driven joints resolved.
 * Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
   OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
-  them), for every coordinate the path spans. For a tendon whose same-body segments are held
-  (``path_forces="opensim"``, :mod:`o2m.tendons`) the targets are what that tendon stands for:
+  them), for every coordinate the path spans; where OpenSim's length is not that of the path it
+  draws (over several wraps on one segment) by a little, that path, shortened by half that
+  difference's spread, and its moment arms (``computeMomentArm`` where it is nearer them than
+  ``-dL/dq``; :mod:`o2m.convert.drawn_arms`).
+  For a tendon whose same-body segments are held (``path_forces="opensim"``, :mod:`o2m.tendons`)
+  the targets are what that tendon stands for:
   the length with those segments replaced by their held length, and its ``-dL/dq`` (OpenSim's
   ``computeMomentArm``); for one with a length via point (:mod:`o2m.lengthvia`), its designed
   length and that length's ``-dL/dq``.
@@ -32,8 +36,7 @@ moment arms match OpenSim's over sampled poses:
   all its poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
-  start. Each tendon's errors before and after go
-  into the conversion report.
+  start. Each tendon's errors before and after go into the conversion report.
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
+from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets
 from o2m.convert.wrap_choice import best_variant, drop_from_spec, xml_without
 from o2m.osim import runtime
 from o2m.parallel import map_with_progress
@@ -388,9 +392,10 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
              held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
              n_contact: int = 0, designed: dict[str, list] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
-    (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
-    ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
-    wrap objects named in ``contacts`` (tendon -> wrap names)."""
+    (:func:`~o2m.convert.drawn_arms.drawn_path_arms`; of the held tendon, for the paths in
+    ``held``; of the designed length, for the paths in ``designed``) and, over the first
+    ``n_contact`` poses, the wrap-arc points of each tendon's wrap objects named in ``contacts``
+    (tendon -> wrap names)."""
     from o2m.mj.posing import joint_qpos_address, resolve_joint_equalities
     from o2m.mj.tendons import coordinate_direction, qpos_to_dof
     from o2m.osim.pair import ModelPair
@@ -406,17 +411,18 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     held = {t: h for t, h in (held or {}).items() if t in wanted}
     designed = {t: v for t, v in (designed or {}).items() if t in wanted}
 
-    def corrections(state: Any) -> np.ndarray:
-        """What each target differs from OpenSim's getLength in ``state`` (held, designed)."""
+    def corrections(state: Any) -> np.ndarray:  # what each target differs from getLength by
         return _held_correction(pair, state, held, col) + _designed_correction(pair, state, designed, col)
     coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
                     key=pair.indep_names.index)
     rng = np.random.default_rng(seed)
     bounds = np.array([sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
     qpos, lengths, arms, valid = [], [], [], []
+    drawn_arms, gaps = [], []  # per pose: the drawn path's moment arms, its length minus getLength
     touched: list[dict[str, dict[str, list[np.ndarray]]]] = []  # per pose: tendon -> wrap -> points
     contacts = {t: w for t, w in (contacts or {}).items() if t in wanted and w}
     wanted_idx = np.array([col[t] for t in wanted], dtype=int)
+    plain = {col[t]: spans.get(t, set()) for t in wanted if t not in held and t not in designed}  # others: own targets
     attempts = 0
     while len(qpos) < n_poses and attempts < 4 * n_poses:
         attempts += 1
@@ -438,6 +444,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
                     ma.append(-(up - dn) / (2 * h))
                 # a length discontinuity within the step (a wrap flipping) is no moment arm
                 arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
+            drawn_arm = drawn_path_arms(pair, state, values, coords, plain, arm, 10 * OS_FD_STEP)
+            gap = drawn_gaps(pair, state, plain, raw)
         except Exception:  # assembly failure: draw another pose
             continue
         # OpenSim's own length spiking here (a wrap going the wrong way round) is no target
@@ -458,6 +466,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         qpos.append(q)
         lengths.append(base)
         arms.append(arm)
+        drawn_arms.append(drawn_arm)
+        gaps.append(gap)
     qpos_a, len_a, arm_a, ok_a = np.array(qpos), np.array(lengths), np.array(arms), np.array(valid)
     dv_all = np.array([[qpos_to_dof(m, coordinate_direction(m, q, joint_qpos_address(m, c), pair.plan))
                         for c in coords] for q in qpos_a]).reshape(len(qpos_a), len(coords), m.nv)
@@ -465,8 +475,10 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     for t in wanted:
         cs = [j for j, c in enumerate(coords) if c in spans.get(t, set())]
         rows = ok_a[:, col[t]]
-        out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": len_a[rows, col[t]],
-                  "arm": arm_a[rows, col[t]][:, cs], "coordinates": [coords[j] for j in cs],
+        length, arm = drawn_targets(len_a[rows, col[t]], np.array(gaps)[rows, col[t]], arm_a[rows, col[t]][:, cs],
+                                    np.array(drawn_arms)[rows, col[t]][:, cs])
+        out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": length,
+                  "arm": arm, "coordinates": [coords[j] for j in cs],
                   "spikes": int(np.sum(~rows)), "contacts": {}}
         for k, pose in enumerate(touched):
             if ok_a[k, col[t]]:
