@@ -1,4 +1,4 @@
-"""Which of OpenSim's two moment arms a wrap fit targets: the one of the path OpenSim draws.
+"""The wrap fit's targets where OpenSim's length is not that of the path it draws.
 
 OpenSim has two moment arms for a path: ``computeMomentArm`` (its MomentArmSolver, the one it
 applies in forward dynamics: from the directions of the path it draws) and ``-dL/dq`` of its
@@ -18,8 +18,8 @@ drawn path (its length and moment arms, consistent) shortened by the midrange of
 excess over ``getLength``, so that its length stays within half that excess's spread of
 ``getLength``, where that spread is over 1 mm and at most :data:`DRAWN_GATE` of the length (2 %,
 so within the 1 % length target, as ``path_forces="auto"`` holds a path); elsewhere it keeps
-``getLength`` and ``-dL/dq`` (a two-cylinder path up to 29 mm, over 5 %, short of its drawn path: following
-it cost 1.22 % of length for 17.5 mm of moment arm instead of 19.9).
+``getLength`` and ``-dL/dq`` (a two-cylinder path up to 29 mm, over 5 %, short of its drawn
+path: following it cost 1.22 % of length for 17.5 mm of moment arm instead of 19.9).
 """
 
 from __future__ import annotations
