@@ -10,12 +10,9 @@ moment arms match OpenSim's over sampled poses:
   each pose and MuJoCo takes its independent values, equality-driven joints resolved.
 * Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
   OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
-  them), for every coordinate the path spans; where OpenSim's length is not that of the path it
-  draws (over several wraps on one segment) by a little, that path, shortened by half that
-  difference's spread, and its moment arms (``computeMomentArm`` where it is nearer them than
-  ``-dL/dq``; :mod:`o2m.convert.drawn_arms`).
-  For a tendon whose same-body segments are held (``path_forces="opensim"``, :mod:`o2m.tendons`)
-  the targets are what that tendon stands for:
+  them), for every coordinate the path spans; the drawn path's where OpenSim's length is not it
+  (:mod:`o2m.convert.drawn_arms`). For a tendon whose same-body segments are held
+  (``path_forces="opensim"``, :mod:`o2m.tendons`) the targets are what that tendon stands for:
   the length with those segments replaced by their held length, and its ``-dL/dq`` (OpenSim's
   ``computeMomentArm``); for one with a length via point (:mod:`o2m.lengthvia`), its designed
   length and that length's ``-dL/dq``.
@@ -53,9 +50,8 @@ import mujoco
 import numpy as np
 from lxml import etree
 
-from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets
+from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets, wrap_contacts
 from o2m.convert.wrap_choice import best_variant, drop_from_spec, xml_without
-from o2m.osim import runtime
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
 
@@ -362,20 +358,6 @@ def _held_correction(pair: Any, state: Any, held: dict[str, dict], col: dict[str
     return out
 
 
-def _wrap_contacts(pair: Any, state: Any, tendon: str, wraps: set[str]) -> dict[str, list[np.ndarray]]:
-    """OpenSim's wrap-arc points (in the wrap object's body frame) of ``tendon`` on each of ``wraps``."""
-    opensim = runtime.opensim()
-    out: dict[str, list[np.ndarray]] = {}
-    cp = pair.force(tendon).getGeometryPath().getCurrentPath(state)
-    for i in range(cp.getSize()):
-        pw = opensim.PathWrapPoint.safeDownCast(cp.get(i))
-        if pw is None or pw.getWrapObject().getName() not in wraps:
-            continue
-        arc = pw.getWrapPath(state)
-        out.setdefault(pw.getWrapObject().getName(), []).extend(arc.get(k).to_numpy() for k in range(arc.getSize()))
-    return out
-
-
 def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: dict[str, int]) -> np.ndarray:
     """(n paths,) what a tendon with length via points differs from OpenSim's getLength in
     ``state`` (:func:`o2m.lengthvia.designed_correction`; 0 for other paths)."""
@@ -392,10 +374,9 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
              held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
              n_contact: int = 0, designed: dict[str, list] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
-    (:func:`~o2m.convert.drawn_arms.drawn_path_arms`; of the held tendon, for the paths in
-    ``held``; of the designed length, for the paths in ``designed``) and, over the first
-    ``n_contact`` poses, the wrap-arc points of each tendon's wrap objects named in ``contacts``
-    (tendon -> wrap names)."""
+    (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
+    ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
+    wrap objects named in ``contacts`` (tendon -> wrap names)."""
     from o2m.mj.posing import joint_qpos_address, resolve_joint_equalities
     from o2m.mj.tendons import coordinate_direction, qpos_to_dof
     from o2m.osim.pair import ModelPair
@@ -417,8 +398,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
                     key=pair.indep_names.index)
     rng = np.random.default_rng(seed)
     bounds = np.array([sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
-    qpos, lengths, arms, valid = [], [], [], []
-    drawn_arms, gaps = [], []  # per pose: the drawn path's moment arms, its length minus getLength
+    qpos, lengths, arms, valid, drawn_arms, gaps = [], [], [], [], [], []  # the last two: drawn_arms's
     touched: list[dict[str, dict[str, list[np.ndarray]]]] = []  # per pose: tendon -> wrap -> points
     contacts = {t: w for t, w in (contacts or {}).items() if t in wanted and w}
     wanted_idx = np.array([col[t] for t in wanted], dtype=int)
@@ -457,7 +437,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         for i in opensim_failures(pair, values, suspects, raw, banded):
             ok[i] = False
         valid.append(ok)
-        touched.append({t: _wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
+        touched.append({t: wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
                        if len(touched) < n_contact else {})
         q = np.array(m.qpos0, dtype=float)
         for n, v in values.items():
