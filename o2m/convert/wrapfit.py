@@ -10,7 +10,8 @@ moment arms match OpenSim's over sampled poses:
   each pose and MuJoCo takes its independent values, equality-driven joints resolved.
 * Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
   OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
-  them), for every coordinate the path spans. For a tendon whose same-body segments are held
+  them), for every coordinate the path spans; the drawn path's where OpenSim's length is not it
+  (:mod:`o2m.convert.drawn_arms`). For a tendon whose same-body segments are held
   (``path_forces="opensim"``, :mod:`o2m.tendons`) the targets are what that tendon stands for:
   the length with those segments replaced by their held length, and its ``-dL/dq`` (OpenSim's
   ``computeMomentArm``); for one with a length via point (:mod:`o2m.lengthvia`), its designed
@@ -32,8 +33,7 @@ moment arms match OpenSim's over sampled poses:
   all its poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
-  start. Each tendon's errors before and after go
-  into the conversion report.
+  start. Each tendon's errors before and after go into the conversion report.
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ import mujoco
 import numpy as np
 from lxml import etree
 
+from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets, wrap_contacts
 from o2m.convert.wrap_choice import best_variant, drop_from_spec, xml_without
-from o2m.osim import runtime
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
 
@@ -358,20 +358,6 @@ def _held_correction(pair: Any, state: Any, held: dict[str, dict], col: dict[str
     return out
 
 
-def _wrap_contacts(pair: Any, state: Any, tendon: str, wraps: set[str]) -> dict[str, list[np.ndarray]]:
-    """OpenSim's wrap-arc points (in the wrap object's body frame) of ``tendon`` on each of ``wraps``."""
-    opensim = runtime.opensim()
-    out: dict[str, list[np.ndarray]] = {}
-    cp = pair.force(tendon).getGeometryPath().getCurrentPath(state)
-    for i in range(cp.getSize()):
-        pw = opensim.PathWrapPoint.safeDownCast(cp.get(i))
-        if pw is None or pw.getWrapObject().getName() not in wraps:
-            continue
-        arc = pw.getWrapPath(state)
-        out.setdefault(pw.getWrapObject().getName(), []).extend(arc.get(k).to_numpy() for k in range(arc.getSize()))
-    return out
-
-
 def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: dict[str, int]) -> np.ndarray:
     """(n paths,) what a tendon with length via points differs from OpenSim's getLength in
     ``state`` (:func:`o2m.lengthvia.designed_correction`; 0 for other paths)."""
@@ -406,17 +392,17 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     held = {t: h for t, h in (held or {}).items() if t in wanted}
     designed = {t: v for t, v in (designed or {}).items() if t in wanted}
 
-    def corrections(state: Any) -> np.ndarray:
-        """What each target differs from OpenSim's getLength in ``state`` (held, designed)."""
+    def corrections(state: Any) -> np.ndarray:  # what each target differs from getLength by
         return _held_correction(pair, state, held, col) + _designed_correction(pair, state, designed, col)
     coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
                     key=pair.indep_names.index)
     rng = np.random.default_rng(seed)
     bounds = np.array([sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
-    qpos, lengths, arms, valid = [], [], [], []
+    qpos, lengths, arms, valid, drawn_arms, gaps = [], [], [], [], [], []  # the last two: drawn_arms's
     touched: list[dict[str, dict[str, list[np.ndarray]]]] = []  # per pose: tendon -> wrap -> points
     contacts = {t: w for t, w in (contacts or {}).items() if t in wanted and w}
     wanted_idx = np.array([col[t] for t in wanted], dtype=int)
+    plain = {col[t]: spans.get(t, set()) for t in wanted if t not in held and t not in designed}  # others: own targets
     attempts = 0
     while len(qpos) < n_poses and attempts < 4 * n_poses:
         attempts += 1
@@ -438,6 +424,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
                     ma.append(-(up - dn) / (2 * h))
                 # a length discontinuity within the step (a wrap flipping) is no moment arm
                 arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
+            drawn_arm = drawn_path_arms(pair, state, values, coords, plain, arm, 10 * OS_FD_STEP)
+            gap = drawn_gaps(pair, state, plain, raw)
         except Exception:  # assembly failure: draw another pose
             continue
         # OpenSim's own length spiking here (a wrap going the wrong way round) is no target
@@ -449,7 +437,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         for i in opensim_failures(pair, values, suspects, raw, banded):
             ok[i] = False
         valid.append(ok)
-        touched.append({t: _wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
+        touched.append({t: wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
                        if len(touched) < n_contact else {})
         q = np.array(m.qpos0, dtype=float)
         for n, v in values.items():
@@ -458,6 +446,8 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         qpos.append(q)
         lengths.append(base)
         arms.append(arm)
+        drawn_arms.append(drawn_arm)
+        gaps.append(gap)
     qpos_a, len_a, arm_a, ok_a = np.array(qpos), np.array(lengths), np.array(arms), np.array(valid)
     dv_all = np.array([[qpos_to_dof(m, coordinate_direction(m, q, joint_qpos_address(m, c), pair.plan))
                         for c in coords] for q in qpos_a]).reshape(len(qpos_a), len(coords), m.nv)
@@ -465,8 +455,10 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     for t in wanted:
         cs = [j for j, c in enumerate(coords) if c in spans.get(t, set())]
         rows = ok_a[:, col[t]]
-        out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": len_a[rows, col[t]],
-                  "arm": arm_a[rows, col[t]][:, cs], "coordinates": [coords[j] for j in cs],
+        length, arm = drawn_targets(len_a[rows, col[t]], np.array(gaps)[rows, col[t]], arm_a[rows, col[t]][:, cs],
+                                    np.array(drawn_arms)[rows, col[t]][:, cs])
+        out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": length,
+                  "arm": arm, "coordinates": [coords[j] for j in cs],
                   "spikes": int(np.sum(~rows)), "contacts": {}}
         for k, pose in enumerate(touched):
             if ok_a[k, col[t]]:

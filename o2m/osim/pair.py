@@ -98,6 +98,11 @@ class ModelPair:
                 if c.getName() in values:
                     c.setValue(state, float(values[c.getName()]), False)
             if assemble or self.dependent:
+                # a fresh assembly solver: where one assembly fails, OpenSim's Model::assemble
+                # relaxes the constraints (weight 20) for good, after which an assembled
+                # coordinate moves 1/21 of its step (Rajagopal2016's knee after a pose just below
+                # its clamped range: every later -dL/dq about it 21 times too small)
+                self.os_model.updateAssemblyConditions(state)
                 self.os_model.assemble(state)
         self.os_model.realizePosition(state)
         return state
