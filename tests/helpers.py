@@ -153,3 +153,18 @@ def add_three_point_paths(model, arm, names) -> None:
         pa.addNewPathPoint(f"{name}-P2", arm, osim.Vec3(0.1, 0.03, 0))
         pa.addNewPathPoint(f"{name}-P3", arm, osim.Vec3(0.3, 0.0, 0))
         model.addForce(pa)
+
+
+def add_coupler(model, name: str, independent: str, dependent: str, function) -> None:
+    """Add to the OpenSim ``model`` a CoordinateCouplerConstraint ``name``: ``dependent`` =
+    ``function``(``independent``)."""
+    import opensim as osim
+
+    cc = osim.CoordinateCouplerConstraint()
+    cc.setName(name)
+    names = osim.ArrayStr()
+    names.append(independent)
+    cc.setIndependentCoordinateNames(names)
+    cc.setDependentCoordinateName(dependent)
+    cc.setFunction(function)
+    model.addConstraint(cc)

@@ -32,7 +32,7 @@ from o2m import models
 from o2m.convert.converter import convert
 from o2m.transforms import OSIM_TO_MJ
 from o2m.validate.kinematics import compare_kinematics
-from tests.helpers import convert_options, require_models
+from tests.helpers import add_coupler, convert_options, require_models
 
 osim.Logger.setLevelString("error")
 
@@ -233,14 +233,7 @@ def build_model(path: Path, joints: list[JointSpec], *, couplers: list[CouplerSp
             if c.locked:
                 coord.setDefaultLocked(True)
     for cp in couplers:
-        cc = osim.CoordinateCouplerConstraint()
-        cc.setName(cp.name)
-        names = osim.ArrayStr()
-        names.append(cp.independent)
-        cc.setIndependentCoordinateNames(names)
-        cc.setDependentCoordinateName(cp.dependent)
-        cc.setFunction(osim.LinearFunction(1.0, 0.0))
-        m.addConstraint(cc)
+        add_coupler(m, cp.name, cp.independent, cp.dependent, osim.LinearFunction(1.0, 0.0))
     m.finalizeConnections()
     m.printToXML(str(path))
     _write_functions(path, joints, couplers)

@@ -13,7 +13,7 @@ import pytest
 
 from o2m.convert.converter import convert
 from o2m.osim.pair import ModelPair
-from tests.helpers import convert_options
+from tests.helpers import add_coupler, convert_options
 
 osim.Logger.setLevelString("off")
 
@@ -34,14 +34,7 @@ def _coupled_arm(path) -> None:
         c.setRangeMax(1.0 if k == 1 else 2.0)
         c.setDefaultClamped(k == 1)
         m.addJoint(j)
-    cc = osim.CoordinateCouplerConstraint()
-    cc.setName("couple")
-    names = osim.ArrayStr()
-    names.append("q1")
-    cc.setIndependentCoordinateNames(names)
-    cc.setDependentCoordinateName("q2")
-    cc.setFunction(osim.LinearFunction(1.0, 0.0))
-    m.addConstraint(cc)
+    add_coupler(m, "couple", "q1", "q2", osim.LinearFunction(1.0, 0.0))
     m.finalizeConnections()
     m.printToXML(str(path))
 

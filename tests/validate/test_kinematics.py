@@ -23,6 +23,7 @@ import pytest
 from o2m.errors import MissingJointError, ValidationError
 from o2m.mj.posing import joint_equality_plan, pose_mujoco
 from o2m.validate.kinematics import compare_kinematics, format_table, rotation_angle
+from tests.helpers import add_coupler
 
 osim.Logger.setLevelString("error")
 
@@ -97,14 +98,7 @@ def build_osim(path, joints, *, couplers=(), locked=()) -> str:
         c.setRangeMax(rng[1])
         m.addJoint(j)
     for k, (dep, ind, func) in enumerate(couplers):
-        cc = osim.CoordinateCouplerConstraint()
-        cc.setName(f"coupler{k}")
-        names = osim.ArrayStr()
-        names.append(ind)
-        cc.setIndependentCoordinateNames(names)
-        cc.setDependentCoordinateName(dep)
-        cc.setFunction(func)
-        m.addConstraint(cc)
+        add_coupler(m, f"coupler{k}", ind, dep, func)
     for coord, value in locked:
         c = m.getCoordinateSet().get(coord)
         c.setDefaultValue(value)

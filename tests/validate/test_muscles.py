@@ -29,6 +29,7 @@ from o2m.mj.tendons import mujoco_moment_arms, mujoco_tendon_lengths
 from o2m.validate.jumps import opensim_length_steps, sweep_jumps, trajectory_jumps
 from o2m.validate.muscles import MuscleReport, compare_muscles, format_muscle_table
 from o2m.validate.sweeps import moment_arm_curve, plot_moment_arms
+from tests.helpers import add_coupler
 
 osim.Logger.setLevelString("error")
 
@@ -104,14 +105,7 @@ def build_osim(path) -> str:
     coef = osim.Vector(3, 0.0)
     for k, c in enumerate(reversed(COUPLING)):  # PolynomialFunction: highest order first
         coef.set(k, c)
-    cc = osim.CoordinateCouplerConstraint()
-    cc.setName("wrist_coupling")
-    names = osim.ArrayStr()
-    names.append("q_el")
-    cc.setIndependentCoordinateNames(names)
-    cc.setDependentCoordinateName("q_wr")
-    cc.setFunction(osim.PolynomialFunction(coef))
-    model.addConstraint(cc)
+    add_coupler(model, "wrist_coupling", "q_el", "q_wr", osim.PolynomialFunction(coef))
     for name, (kind, points) in PATHS.items():
         if kind == "Thelen2003Muscle":
             f = osim.Thelen2003Muscle(name, 300.0, 0.1, 0.2, 0.0)
