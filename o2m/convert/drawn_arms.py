@@ -20,7 +20,6 @@ excess over ``getLength``, so that its length stays within half that excess's sp
 so within the 1 % length target, as ``path_forces="auto"`` holds a path); elsewhere it keeps
 ``getLength`` and ``-dL/dq`` (a two-cylinder path up to 29 mm, over 5 %, short of its drawn
 path: following it cost 1.22 % of length for 17.5 mm of moment arm instead of 19.9).
-:func:`wrap_contacts` gives the drawn path's wrap-arc points (the fit's contact starts).
 """
 
 from __future__ import annotations
@@ -30,7 +29,6 @@ from typing import Any
 
 import numpy as np
 
-from o2m.osim import runtime
 from o2m.osim.spikes import drawn_length
 
 #: Largest spread (fraction of the length) of the drawn path's excess over getLength for which a
@@ -99,19 +97,4 @@ def drawn_targets(length: np.ndarray, gap: np.ndarray, arm: np.ndarray,
     return length + gap - 0.5 * float(np.max(gap) + np.min(gap)), drawn_arm
 
 
-def wrap_contacts(pair: Any, state: Any, tendon: str, wraps: set[str]) -> dict[str, list[np.ndarray]]:
-    """OpenSim's wrap-arc points (in the wrap object's body frame) of ``tendon`` on each of ``wraps``."""
-    opensim = runtime.opensim()
-    out: dict[str, list[np.ndarray]] = {}
-    cp = pair.force(tendon).getGeometryPath().getCurrentPath(state)
-    for i in range(cp.getSize()):
-        pw = opensim.PathWrapPoint.safeDownCast(cp.get(i))
-        if pw is None or pw.getWrapObject().getName() not in wraps:
-            continue
-        arc = pw.getWrapPath(state)
-        out.setdefault(pw.getWrapObject().getName(), []).extend(arc.get(k).to_numpy() for k in range(arc.getSize()))
-    return out
-
-
-__all__ = ["DRAWN_GATE", "MA_AGREEMENT", "MIN_SPREAD", "drawn_gaps", "drawn_path_arms", "drawn_targets",
-           "wrap_contacts"]
+__all__ = ["DRAWN_GATE", "MA_AGREEMENT", "MIN_SPREAD", "drawn_gaps", "drawn_path_arms", "drawn_targets"]

@@ -50,7 +50,7 @@ import mujoco
 import numpy as np
 from lxml import etree
 
-from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets, wrap_contacts
+from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets
 from o2m.convert.wrap_choice import best_variant, drop_from_spec, xml_without
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
@@ -381,7 +381,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
     from o2m.mj.tendons import coordinate_direction, qpos_to_dof
     from o2m.osim.pair import ModelPair
     from o2m.osim.runtime import sample_bounds
-    from o2m.osim.spikes import SPIKE_TOL, band_suspects, opensim_failures
+    from o2m.osim.spikes import SPIKE_TOL, band_suspects, opensim_failures, wrap_contacts
 
     pair = ModelPair(osim_path, xml_path)
     m = pair.mj_model

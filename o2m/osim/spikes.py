@@ -21,7 +21,7 @@ __all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_
            "LOOP_KINDS", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "band_suspects", "current_path_points",
            "one_pose_spikes", "opensim_detours", "opensim_failures", "opensim_loops", "opensim_spikes",
            "drawn_length", "opensim_inconsistencies", "outlying_changes", "path_detour", "path_loop", "runs_cross",
-           "wrap_runs"]
+           "wrap_contacts", "wrap_runs"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -279,6 +279,20 @@ def drawn_length(os_model: Any, state: Any, name: str) -> float:
             pts += [body.findStationLocationInGround(state, arc.get(j)).to_numpy() for j in range(arc.getSize())]
         pts.append(current.get(k).getLocationInGround(state).to_numpy())
     return float(np.linalg.norm(np.diff(np.array(pts), axis=0), axis=1).sum()) if len(pts) > 1 else 0.0
+
+
+def wrap_contacts(pair: Any, state: Any, tendon: str, wraps: set[str]) -> dict[str, list[np.ndarray]]:
+    """OpenSim's wrap-arc points (in the wrap object's body frame) of ``tendon`` on each of ``wraps``."""
+    opensim = runtime.opensim()
+    out: dict[str, list[np.ndarray]] = {}
+    cp = pair.force(tendon).getGeometryPath().getCurrentPath(state)
+    for i in range(cp.getSize()):
+        pw = opensim.PathWrapPoint.safeDownCast(cp.get(i))
+        if pw is None or pw.getWrapObject().getName() not in wraps:
+            continue
+        arc = pw.getWrapPath(state)
+        out.setdefault(pw.getWrapObject().getName(), []).extend(arc.get(k).to_numpy() for k in range(arc.getSize()))
+    return out
 
 
 def opensim_inconsistencies(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
