@@ -4,14 +4,13 @@ OpenSim has the point off.
 A ConditionalPathPoint becomes a small wrap sphere (radius :data:`CONDITIONAL_RADIUS`, metres)
 whose surface passes through the point, with a side site on a carrier that slides out of it as
 the point's coordinate (radians or metres) leaves the point's range (see
-:func:`conditional_geom`). MuJoCo 4.0 wraps a tendon round a geom whenever the straight segment
-cuts it *or passes on the side opposite the side site*, and then goes round on the side-site
-side; so the tendon is pulled through the point exactly while the point lies outside the
-straight line between its neighbours (OpenSim's via point makes the path bend there) and runs
-straight otherwise. The switch is geometric, depends on every coordinate, and leaves the length
-continuous (OpenSim's own length jumps where its coordinate leaves the range; the README gives by
-how much). Consecutive conditional points between the same two sites keep the one that bends the
-path most (MuJoCo needs a site between two wrap geoms); the report names the others.
+:func:`conditional_geom`): inside, MuJoCo 4.0 makes the tendon touch the sphere (through the
+point); outside, its ordinary rule leaves the tendon straight. So the tendon switches where
+OpenSim's does, by OpenSim's own step, just beyond the range's ends (:data:`SWITCH_MARGIN`).
+
+MuJoCo needs a site between two wrap geoms, so in a run of consecutive conditional points some
+are kept always on (sites) or left out: :func:`conditional_roles` takes the choice whose path
+is nearest OpenSim's over the sampled poses; the report names each point so treated.
 """
 
 from __future__ import annotations
@@ -33,10 +32,13 @@ CONDITIONAL_RADIUS = 0.001
 #: A ConditionalPathPoint whose range is no wider than this (rad or m) is active at one value of its
 #: coordinate at most: it is left out (the switch of :func:`conditional_geom` needs a range to fit).
 MIN_RANGE_WIDTH = 1e-9
-#: How far (rad or m) beyond each end of a point's range its side site leaves the sphere: ten
-#: times the finite-difference step of :func:`o2m.mj.tendons.mujoco_moment_arms`, so a pose at a
-#: range end (on the path in OpenSim) is on the path in MuJoCo on both sides of the step.
+#: How far (rad or m) beyond each end of a point's range its side site leaves the sphere. OpenSim's
+#: range is closed (a pose at an end has the point on); ten times the finite-difference step of
+#: :func:`o2m.mj.tendons.mujoco_moment_arms`, so such a pose has it on within that step too.
 SWITCH_MARGIN = 1e-5
+#: Runs of consecutive conditional points up to this long try every role per point (3**n
+#: choices); a longer run keeps one sphere (the best) and leaves out the others.
+MAX_RUN_SEARCH = 6
 
 
 def conditional_roles(ctx: PathContext, path: Path) -> list[str]:
@@ -87,7 +89,8 @@ def _run_roles(ctx: PathContext, path: Path, roles: list[str], run: list[int]) -
     sphere (``"conditional"``), always on (``"site"``) and left out (``"dropped"``), with a site
     between any two spheres, whose path (points joined straight) is nearest OpenSim's: smallest
     largest relative error over the sampled poses, then smallest RMS. Keeping one sphere and
-    leaving out the others is one of the choices."""
+    leaving out the others is one of the choices, and the only kind tried for a run longer than
+    :data:`MAX_RUN_SEARCH`."""
     pts = path.points
     before = max(i for i in range(run[0]) if roles[i] == "site")
     after = min(i for i in range(run[-1] + 1, len(pts)) if roles[i] == "site")
@@ -96,7 +99,11 @@ def _run_roles(ctx: PathContext, path: Path, roles: list[str], run: list[int]) -
     truth = _polyline(where, active)
     full = np.array([ctx.straight_length(path, n) for n in range(len(where))])
     best = None
-    for choice in itertools.product(("conditional", "site", "dropped"), repeat=len(run)):
+    if len(run) <= MAX_RUN_SEARCH:
+        choices = itertools.product(("conditional", "site", "dropped"), repeat=len(run))
+    else:
+        choices = [tuple("conditional" if i == j else "dropped" for i in range(len(run))) for j in range(len(run))]
+    for choice in choices:
         kept = [c for c in choice if c != "dropped"]
         if any(a == b == "conditional" for a, b in zip(kept[:-1], kept[1:], strict=True)):
             continue
