@@ -4,17 +4,18 @@ OpenSim has the point off.
 A ConditionalPathPoint becomes a small wrap sphere (radius :data:`CONDITIONAL_RADIUS`, metres)
 whose surface passes through the point, with a side site on a carrier that slides out of it as
 the point's coordinate (radians or metres) leaves the point's range (see
-:func:`conditional_geom`). MuJoCo 4.0 wraps a tendon round a geom whenever the straight segment
-cuts it *or passes on the side opposite the side site*, and then goes round on the side-site
-side; so the tendon is pulled through the point exactly while the point lies outside the
-straight line between its neighbours (OpenSim's via point makes the path bend there) and runs
-straight otherwise. The switch is geometric, depends on every coordinate, and leaves the length
-continuous (OpenSim's own length jumps where its coordinate leaves the range; the README gives by
-how much). Consecutive conditional points between the same two sites keep the one that bends the
-path most (MuJoCo needs a site between two wrap geoms); the report names the others.
+:func:`conditional_geom`): inside, MuJoCo 4.0 makes the tendon touch the sphere (through the
+point); outside, its ordinary rule leaves the tendon straight. So the tendon switches where
+OpenSim's does, by OpenSim's own step, just beyond the range's ends (:data:`SWITCH_MARGIN`).
+
+MuJoCo needs a site between two wrap geoms, so in a run of consecutive conditional points some
+are kept always on (sites) or left out: :func:`conditional_roles` takes the choice whose path
+is nearest OpenSim's over the sampled poses; the report names each point so treated.
 """
 
 from __future__ import annotations
+
+import itertools
 
 import mujoco
 import numpy as np
@@ -31,14 +32,22 @@ CONDITIONAL_RADIUS = 0.001
 #: A ConditionalPathPoint whose range is no wider than this (rad or m) is active at one value of its
 #: coordinate at most: it is left out (the switch of :func:`conditional_geom` needs a range to fit).
 MIN_RANGE_WIDTH = 1e-9
+#: How far (rad or m) beyond each end of a point's range its side site leaves the sphere. OpenSim's
+#: range is closed (a pose at an end has the point on); ten times the finite-difference step of
+#: :func:`o2m.mj.tendons.mujoco_moment_arms`, so such a pose has it on within that step too.
+SWITCH_MARGIN = 1e-5
+#: Runs of consecutive conditional points up to this long try every role per point (3**n
+#: choices); a longer run keeps one sphere (the best) and leaves out the others.
+MAX_RUN_SEARCH = 6
 
 
 def conditional_roles(ctx: PathContext, path: Path) -> list[str]:
     """For each point of ``path``: ``"site"`` (always on the path), ``"conditional"`` (a
-    ConditionalPathPoint made a wrap cylinder) or ``"dropped"`` (a conditional point left out:
-    its coordinate is locked outside its range, its range has no width (:data:`MIN_RANGE_WIDTH`),
-    or it is not the one of a run of consecutive conditional points that bends the path most).
-    First and last points stay sites."""
+    ConditionalPathPoint made a wrap sphere) or ``"dropped"`` (a conditional point left out:
+    its coordinate is locked outside its range, or its range has no width
+    (:data:`MIN_RANGE_WIDTH`)). In a run of consecutive conditional points, MuJoCo needs a site
+    between two wrap geoms: :func:`_run_roles` chooses which of them are spheres, which are
+    kept always on (sites) and which are left out. First and last points stay sites."""
     pts = path.points
     roles = []
     for i, p in enumerate(pts):
@@ -57,31 +66,92 @@ def conditional_roles(ctx: PathContext, path: Path) -> list[str]:
                 f"value only" + (" (the reference pose is there)" if ctx.active(p, ctx.b.coordinate_values()) else ""))
         else:
             roles.append("conditional")
-    i = 0
-    while i < len(pts):
-        if roles[i] != "conditional":
-            i += 1
-            continue
-        j = i
-        while j + 1 < len(pts) and roles[j + 1] == "conditional":
-            j += 1
-        if j > i:  # a run: keep the point whose path alone (points joined straight) is nearest OpenSim's
-            errs = []
-            for k in range(i, j + 1):
-                drop = set(range(i, j + 1)) - {k}
-                errs.append(max(abs(ctx.straight_length(path, n, drop) / ctx.straight_length(path, n) - 1.0)
-                                for n in range(len(ctx.pose_samples()))))
-            best = i + int(np.argmin(errs))
-            for k in range(i, j + 1):
-                if k != best:
-                    roles[k] = "dropped"
-                    ctx.b.result.notes.append(
-                        f"{path.owner}: ConditionalPathPoint '{pts[k].name}' left out (it follows or precedes "
-                        f"another conditional point, and MuJoCo needs a site between two wrap geoms; "
-                        f"'{pts[best].name}' kept: the straight path without the others is within "
-                        f"{100 * min(errs):.2g} % of OpenSim's over the sampled poses)")
-        i = j + 1
+    for run in _conditional_runs(roles):
+        if len(run) > 1:
+            _run_roles(ctx, path, roles, run)
     return roles
+
+
+def _conditional_runs(roles: list[str]) -> list[list[int]]:
+    """Indices of the runs of conditional points with no site between them (left-out points
+    do not separate two conditional points: MuJoCo would see two wrap geoms in a row)."""
+    runs: list[list[int]] = [[]]
+    for k, role in enumerate(roles):
+        if role == "conditional":
+            runs[-1].append(k)
+        elif role == "site" and runs[-1]:
+            runs.append([])
+    return [r for r in runs if r]
+
+
+def _run_roles(ctx: PathContext, path: Path, roles: list[str], run: list[int]) -> None:
+    """Give the points ``run`` (consecutive conditional points of ``path``) the roles, among
+    sphere (``"conditional"``), always on (``"site"``) and left out (``"dropped"``), with a site
+    between any two spheres, whose path (points joined straight) is nearest OpenSim's: smallest
+    largest relative error over the sampled poses, then smallest RMS. Keeping one sphere and
+    leaving out the others is one of the choices, and the only kind tried for a run longer than
+    :data:`MAX_RUN_SEARCH`."""
+    pts = path.points
+    before = max(i for i in range(run[0]) if roles[i] == "site")
+    after = min(i for i in range(run[-1] + 1, len(pts)) if roles[i] == "site")
+    span = [before] + run + [after]
+    where, active = _span_samples(ctx, path, span)
+    truth = _polyline(where, active)
+    full = np.array([ctx.straight_length(path, n) for n in range(len(where))])
+    best = None
+    if len(run) <= MAX_RUN_SEARCH:
+        choices = itertools.product(("conditional", "site", "dropped"), repeat=len(run))
+    else:
+        choices = [tuple("conditional" if i == j else "dropped" for i in range(len(run))) for j in range(len(run))]
+    for choice in choices:
+        kept = [c for c in choice if c != "dropped"]
+        if any(a == b == "conditional" for a, b in zip(kept[:-1], kept[1:], strict=True)):
+            continue
+        on = active.copy()
+        for j, c in enumerate(choice, start=1):
+            on[:, j] = {"conditional": active[:, j], "site": True, "dropped": False}[c]
+        rel = np.abs(_polyline(where, on) - truth) / np.maximum(full, 1e-12)
+        key = (float(rel.max()), float(np.sqrt(np.mean(rel**2))))
+        if best is None or key < best[0]:
+            best = (key, choice)
+    (worst, rms), choice = best
+    for k, c in zip(run, choice, strict=True):
+        roles[k] = c
+    spheres = [pts[k].name for k, c in zip(run, choice, strict=True) if c == "conditional"]
+    for k, c in zip(run, choice, strict=True):
+        if c != "conditional":
+            what = "left out" if c == "dropped" else "kept always on the path"
+            ctx.b.result.notes.append(
+                f"{path.owner}: ConditionalPathPoint '{pts[k].name}' {what} (consecutive conditional points: "
+                f"MuJoCo needs a site between two wrap geoms; spheres {spheres or 'none'}, the straight path so "
+                f"chosen is within {100 * worst:.2g} % of OpenSim's over the sampled poses, {100 * rms:.2g} % RMS)")
+
+
+def _span_samples(ctx: PathContext, path: Path, span: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Ground positions (n_samples, len(span), 3) of the points ``span`` of ``path`` at the
+    sampled poses (m), and whether OpenSim has each on its path there (n_samples, len(span))."""
+    samples = ctx.pose_samples()
+    where = np.zeros((len(samples), len(span), 3))
+    active = np.zeros((len(samples), len(span)), dtype=bool)
+    for n, (_, values) in enumerate(samples):
+        frames = ctx.sample_frames(n)
+        for j, k in enumerate(span):
+            p = path.points[k]
+            where[n, j] = frames[p.body].apply(ctx.location_at(p, values))
+            active[n, j] = ctx.active(p, values)
+    return where, active
+
+
+def _polyline(where: np.ndarray, on: np.ndarray) -> np.ndarray:
+    """Length (m) per sample of the polyline through the points of ``where`` (n, k, 3) that
+    are ``on`` (n, k); the first and last are always on."""
+    total = np.zeros(len(where))
+    prev = where[:, 0]
+    for j in range(1, where.shape[1]):
+        step = np.linalg.norm(where[:, j] - prev, axis=1)
+        total += np.where(on[:, j], step, 0.0)
+        prev = np.where(on[:, j, None], where[:, j], prev)
+    return total
 
 
 def conditional_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, roles: list[str]) -> tuple[str, str]:
@@ -120,11 +190,14 @@ def conditional_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, r
     base = ctx.b.drivers[cname].base
     kind = ctx.b.coord_joint[base][1].kind if base in ctx.b.coord_joint else "rotation"
     clo, chi = ctx.b.fit_range(base, kind)
-    slo, shi = lo, hi  # where the switch is
+    # where the switch is: just beyond each end, as OpenSim's range is closed and a side site on
+    # the surface is in or out by rounding (WristModel FDPM, range end 0 at the default flexion:
+    # MuJoCo's finite-difference moment arms 0.4 m there about every coordinate)
+    slo, shi = lo - SWITCH_MARGIN, hi + SWITCH_MARGIN
     if base == cname:  # a range end at (or beyond) the coordinate's limit never switches there
         tol = 1e-6 * max(1.0, chi - clo)
-        slo = lo - (hi - lo) if lo <= clo + tol else lo
-        shi = hi + (hi - lo) if hi >= chi - tol else hi
+        slo = lo - (hi - lo) if lo <= clo + tol else slo
+        shi = hi + (hi - lo) if hi >= chi - tol else shi
     half = 0.5 * (shi - slo)
     mid = 0.5 * (shi + slo)
 

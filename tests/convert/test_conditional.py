@@ -1,0 +1,118 @@
+"""Consecutive ConditionalPathPoints and a range end at the default pose, on small hand-built models.
+
+A pendulum (tests.helpers.pin_pendulum: ground -> arm on PinJoint q, range [-1, 1.5] rad) with one
+PathActuator "m" from P1 on ground (-0.2, 0, 0) to P4 on the arm (0.3, 0, 0), and between them
+ConditionalPathPoints on the arm, all switched by q (written as text: OpenSim's API crashes
+inserting them).
+
+Expected of the converter: a run of consecutive conditional points gets the sphere / always-on /
+left-out roles whose path is nearest OpenSim's (here exact wherever OpenSim has the long-lived
+point on, which keeping one sphere is not), and a pose at a range end has the point on, as in
+OpenSim, on both sides of a finite-difference step.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import opensim as osim
+import pytest
+
+from o2m.convert.converter import convert
+from o2m.mj.posing import pose_mujoco
+from o2m.mj.tendons import mujoco_moment_arms
+from tests.helpers import convert_options, pin_pendulum
+
+osim.Logger.setLevelString("error")
+
+
+def _pendulum(path, points: list[tuple[str, tuple[float, float, float], tuple[float, float]]]) -> None:
+    """Write the pendulum with the ConditionalPathPoints ``points`` (name, location on the arm
+    (m), range of q (rad)), in order, between P1 and P4."""
+    m, arm = pin_pendulum("pendulum_conditional")
+    pa = osim.PathActuator()
+    pa.setName("m")
+    pa.setOptimalForce(100)
+    pa.addNewPathPoint("P1", m.getGround(), osim.Vec3(-0.2, 0.0, 0))
+    pa.addNewPathPoint("P4", arm, osim.Vec3(0.3, 0.0, 0))
+    m.addForce(pa)
+    m.finalizeConnections()
+    m.initSystem()
+    m.printToXML(str(path))
+    text = path.read_text()
+    cond = "".join(f'<ConditionalPathPoint name="{name}"><socket_parent_frame>/bodyset/arm</socket_parent_frame>'
+                   f'<location>{x!r} {y!r} {z!r}</location><range>{lo!r} {hi!r}</range>'
+                   f'<socket_coordinate>/jointset/pin/q</socket_coordinate></ConditionalPathPoint>'
+                   for name, (x, y, z), (lo, hi) in points)
+    i = text.index('<PathPoint name="P4">')
+    path.write_text(text[:i] + cond + text[i:])
+
+
+def _lengths(osim_path, xml, qs):
+    """OpenSim's and MuJoCo's lengths (m) of "m" at the angles ``qs`` (rad)."""
+    model = osim.Model(str(osim_path))
+    state = model.initSystem()
+    pa = osim.PathActuator.safeDownCast(model.getForceSet().get("m"))
+    coord = model.getCoordinateSet().get("q")
+    m = mujoco.MjModel.from_xml_path(str(xml))
+    d = mujoco.MjData(m)
+    l_os, l_mj = [], []
+    for q in qs:
+        coord.setValue(state, float(q))
+        model.realizePosition(state)
+        l_os.append(pa.getLength(state))
+        pose_mujoco(m, d, {"q": float(q)})
+        mujoco.mj_tendon(m, d)
+        l_mj.append(d.ten_length[m.tendon("m").id])
+    return np.array(l_os), np.array(l_mj)
+
+
+@pytest.mark.parametrize("between", [False, True])
+def test_a_run_of_two_keeps_the_long_lived_point_always_on(tmp_path, between):
+    """P2 is on over q's whole range [-1, 1.5], P3 (after it) for q in [-1, 0.2], both bending
+    the path. Keeping one sphere (o2m's rule before) misses the other point's detour; P2 always on
+    and P3 a sphere is OpenSim's path. ``between``: a point active at q = 0 only (left out)
+    between them, which must not hide the run (two spheres with no site between: one was lost)."""
+    path = tmp_path / "run.osim"
+    zero = [("P2b", (0.05, 0.05, 0.0), (0.0, 0.0))] if between else []
+    _pendulum(path, [("P2", (0.0, 0.03, 0.0), (-1.0, 1.5))] + zero + [("P3", (0.15, 0.04, 0.0), (-1.0, 0.2))])
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    assert any("'P2' kept always on the path" in n for n in conv.report.notes), conv.report.notes
+    xml = conv.xml.read_text()
+    assert "P3_cond" in xml and "P2_cond" not in xml
+    qs = np.arange(-1.0, 1.5, np.deg2rad(1.0))
+    l_os, l_mj = _lengths(path, conv.xml, qs)
+    # within the 1 mm sphere's rounding of the bend at P3 (test_wrapping's pendulum: 0.13 mm)
+    assert np.abs(l_mj - l_os).max() < 2e-4, np.abs(l_mj - l_os).max()
+    # keeping one sphere would miss a detour that is real: P2's where P3 is off, and P3's
+    assert l_os[np.argmin(np.abs(qs - 1.0))] - _straight(1.0) > 1e-3
+    assert l_os[np.argmin(np.abs(qs))] - _without_p3(0.0) > 1e-3
+
+
+def _straight(q: float) -> float:
+    """Length (m) of the straight line P1-P4 at angle ``q`` (rad)."""
+    return float(np.hypot(0.3 * np.cos(q) + 0.2, 0.3 * np.sin(q)))
+
+
+def _without_p3(q: float) -> float:
+    """Length (m) of P1-P2-P4 at angle ``q`` (rad), P2 at (0, 0.03) on the arm."""
+    p2 = np.array([-0.03 * np.sin(q), 0.03 * np.cos(q)])
+    p4 = 0.3 * np.array([np.cos(q), np.sin(q)])
+    return float(np.linalg.norm(p2 - [-0.2, 0.0]) + np.linalg.norm(p4 - p2))
+
+
+def test_a_range_end_at_the_default_pose_is_on_both_sides_of_a_step(tmp_path):
+    """P2, bending the path, is on for q in [-1, 0], the default angle: OpenSim has it on at q = 0.
+    MuJoCo's side site sat on its sphere's surface there, so rounding decided, and a central
+    difference of 1e-6 rad crossed the step (WristModel's FDPM: moment arms of 0.4 m)."""
+    path = tmp_path / "end.osim"
+    _pendulum(path, [("P2", (0.1, 0.03, 0.0), (-1.0, 0.0))])
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    l_os, l_mj = _lengths(path, conv.xml, [0.0, 0.01])
+    assert abs(l_mj[0] - l_os[0]) < 2e-4  # on at the range end, as OpenSim
+    assert l_os[0] - l_os[1] > 1e-3 and abs(l_mj[1] - l_os[1]) < 1e-9  # a real step, off past it
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    fd = mujoco_moment_arms(m, d, {"q": 0.0}, ["q"], method="fd")
+    jac = mujoco_moment_arms(m, d, {"q": 0.0}, ["q"], method="jacobian")
+    assert np.abs(fd - jac).max() < 1e-6, (fd, jac)
