@@ -15,11 +15,13 @@ takes the one nearer the drawn path's ``-dL/dq`` (central differences of
 A tendon has one length, and its moment arm is ``-dL/dq`` of it: it cannot follow both OpenSim's
 ``getLength`` and ``computeMomentArm`` where they disagree. :func:`drawn_targets` fits it to the
 drawn path (its length and moment arms, consistent) shortened by the midrange of the drawn path's
-excess over ``getLength``, so that its length stays within half that excess's spread of
-``getLength``, where that spread is over 1 mm and at most :data:`DRAWN_GATE` of the length (2 %,
-so within the 1 % length target, as ``path_forces="auto"`` holds a path); elsewhere it keeps
-``getLength`` and ``-dL/dq`` (a two-cylinder path up to 29 mm, over 5 %, short of its drawn
-path: following it cost 1.22 % of length for 17.5 mm of moment arm instead of 19.9).
+excess over ``getLength``, where that excess spreads by over 1 mm. Its length then stays within
+half the spread of ``getLength``; where half the spread is over 0.8 % (:data:`DRAWN_GATE`: the
+1 % length target less a fifth for the fit's own residual), the targets go only the share of the
+way from ``getLength`` and ``-dL/dq`` that keeps them there, length and moment arms alike, and
+where that share would be under :data:`MIN_SHARE` they stay ``getLength`` and ``-dL/dq`` (a
+two-cylinder path up to 29 mm, over 5 %, short of its drawn path: following it all the way cost
+1.22 % of length for 17.5 mm of moment arm instead of 19.9).
 """
 
 from __future__ import annotations
@@ -32,9 +34,13 @@ import numpy as np
 from o2m.osim.spikes import drawn_length
 
 #: Largest spread (fraction of the length) of the drawn path's excess over getLength for which a
-#: tendon follows the drawn path (:func:`drawn_targets`), and the smallest (m).
-DRAWN_GATE = 0.02
+#: tendon follows the drawn path all the way (:func:`drawn_targets`; beyond, a share of the way),
+#: and the smallest spread (m) for which it follows it at all.
+DRAWN_GATE = 0.016
 MIN_SPREAD = 1e-3
+#: Below this share of the way (a spread over twice the gate) the drawn path and getLength disagree
+#: by more than a tendon could split, and the targets stay getLength and -dL/dq.
+MIN_SHARE = 0.5
 #: OpenSim's two moment arms (m) closer than this are taken to agree (K3's median target: below it
 #: the choice does not matter; where they agree they differ by about 1e-8 m).
 MA_AGREEMENT = 5e-4
@@ -88,13 +94,23 @@ def drawn_gaps(pair: Any, state: Any, paths: Mapping[int, set[str]], lengths: np
 def drawn_targets(length: np.ndarray, gap: np.ndarray, arm: np.ndarray,
                   drawn_arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One tendon's length (n poses,) and moment-arm ((n, n coords)) targets, m: OpenSim's
-    ``length`` and ``-dL/dq`` ``arm``, or, where the spread of ``gap`` (drawn length minus
-    ``length``) is over :data:`MIN_SPREAD` and within :data:`DRAWN_GATE` of the length, the drawn
-    path shortened by the midrange of ``gap`` and ``drawn_arm`` (:func:`drawn_path_arms`)."""
+    ``length`` and ``-dL/dq`` ``arm`` where the spread of ``gap`` (drawn length minus ``length``)
+    is at most :data:`MIN_SPREAD` or over ``DRAWN_GATE / MIN_SHARE`` of the length; else the drawn
+    path shortened by the midrange of ``gap`` and ``drawn_arm`` (:func:`drawn_path_arms`),
+    blended towards ``length`` and ``arm`` where the spread is over :data:`DRAWN_GATE` of the
+    length: a share ``DRAWN_GATE * min(length) / spread`` of the way, so that the length target
+    stays within half that gate of ``length`` and the two targets stay consistent (the blended
+    length's ``-dL/dq`` is the blended arm)."""
     spread = float(np.max(gap) - np.min(gap)) if len(gap) else 0.0
-    if spread <= MIN_SPREAD or spread > DRAWN_GATE * float(np.min(length)):
+    if spread <= MIN_SPREAD:
         return length, arm
-    return length + gap - 0.5 * float(np.max(gap) + np.min(gap)), drawn_arm
+    offset = gap - 0.5 * float(np.max(gap) + np.min(gap))
+    share = min(1.0, DRAWN_GATE * float(np.min(length)) / spread)
+    if share < MIN_SHARE:
+        return length, arm
+    if share == 1.0:
+        return length + offset, drawn_arm
+    return length + share * offset, arm + share * (drawn_arm - arm)
 
 
-__all__ = ["DRAWN_GATE", "MA_AGREEMENT", "MIN_SPREAD", "drawn_gaps", "drawn_path_arms", "drawn_targets"]
+__all__ = ["DRAWN_GATE", "MA_AGREEMENT", "MIN_SHARE", "MIN_SPREAD", "drawn_gaps", "drawn_path_arms", "drawn_targets"]

@@ -86,11 +86,13 @@ def test_a_same_body_moving_point_keeps_dldq(tmp_path):
         np.testing.assert_array_equal(targets, dldq)
 
 
-def test_a_tendon_follows_the_drawn_path_only_where_that_keeps_its_length_within_target():
+def test_a_tendon_follows_the_drawn_path_as_far_as_its_length_stays_within_target():
     """Rajagopal2016's gasmed_r: drawn path up to 6.7 mm longer than getLength (1.5 % of 456 mm)
-    -> the drawn path shortened by 3.35 mm, its moment arms; the two-cylinder path (29 mm, over 5 %)
-    and a chord-sized gap (0.2 mm) keep getLength and -dL/dq."""
-    from o2m.convert.drawn_arms import drawn_targets
+    -> the drawn path shortened by 3.35 mm, its moment arms; a gap spreading half as much again
+    (2.3 %) -> the share of the way that keeps the length within half the gate of getLength, the
+    moment arms blended alike; a gap spreading four times as much (6 %, the share under
+    MIN_SHARE) and a chord-sized gap (0.2 mm) keep getLength and -dL/dq."""
+    from o2m.convert.drawn_arms import DRAWN_GATE, MIN_SHARE, drawn_targets
 
     length = np.full(5, 0.456)
     arm, drawn_arm = np.zeros((5, 2)), np.ones((5, 2))
@@ -99,6 +101,13 @@ def test_a_tendon_follows_the_drawn_path_only_where_that_keeps_its_length_within
     np.testing.assert_allclose(target - length, gap - 0.5 * (6.7e-3 - 2e-4))
     assert np.max(np.abs(target - length)) == pytest.approx(0.5 * 6.9e-3)
     assert target_arm is drawn_arm
+    wider = gap * 1.5
+    target, target_arm = drawn_targets(length, wider, arm, drawn_arm)
+    share = DRAWN_GATE * 0.456 / (1.5 * 6.9e-3)
+    assert MIN_SHARE < share < 1.0
+    np.testing.assert_allclose(target - length, share * (wider - 0.5 * (wider.max() + wider.min())))
+    assert np.max(np.abs(target - length)) == pytest.approx(0.5 * DRAWN_GATE * 0.456)
+    np.testing.assert_allclose(target_arm, share * drawn_arm)
     for far in (gap * 4.0, gap * 0.03):
         target, target_arm = drawn_targets(length, far, arm, drawn_arm)
         assert target is length and target_arm is arm
