@@ -1,4 +1,5 @@
-"""Shared test set-up: the local model mirror and a per-session cache (helpers in tests/helpers.py)."""
+"""Shared test set-up: the local model mirror, a per-session cache, and the bundled models
+converted once per session (helpers in tests/helpers.py)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import os
 
 import pytest
 
-from tests.helpers import local_mirror
+from tests.helpers import convert_options, local_mirror, require_models
 
 
 @pytest.fixture(autouse=True, scope="session")
@@ -25,3 +26,27 @@ def _model_mirror_and_cache(tmp_path_factory):
             os.environ.pop(k, None)
         else:
             os.environ[k] = v
+
+
+@pytest.fixture(scope="session")
+def bundled_conversion(tmp_path_factory):
+    """``get(name)`` -> (FetchedModel, Conversion) of the bundled model ``name`` converted with
+    this run's default options (:func:`tests.helpers.convert_options`; 2 workers, which do not
+    change the result), once per session: the integration tests of skeletons and of muscle
+    paths, and the 3.x-document test, read the same conversion instead of each making their own
+    (the wrapped MoBL-ARMS takes minutes). Tests must not write into its folder."""
+    from o2m import models
+    from o2m.convert.converter import convert
+
+    done: dict[str, tuple] = {}
+
+    def get(name: str) -> tuple:
+        if name not in done:
+            require_models()
+            fetched = models.fetch_model_with_geometry(name, progress=False)
+            conv = convert(fetched.osim, tmp_path_factory.mktemp(name), convert_options(workers=2),
+                           geometry_dirs=[fetched.geometry_dir])
+            done[name] = (fetched, conv)
+        return done[name]
+
+    return get

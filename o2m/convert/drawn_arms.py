@@ -47,14 +47,17 @@ MA_AGREEMENT = 5e-4
 
 
 def drawn_path_arms(pair: Any, state: Any, values: Mapping[str, float], coords: Sequence[str],
-                    paths: Mapping[int, set[str]], dldq: np.ndarray, step: float) -> np.ndarray:
+                    paths: Mapping[int, set[str]], dldq: np.ndarray, step: float,
+                    stepped: Mapping[str, tuple[Any, Any]] | None = None) -> np.ndarray:
     """``dldq`` ((n paths, n coords), m; OpenSim's ``-dL/dq`` at ``state``, the pose of independent
     ``values``) with, for the paths ``paths`` (index into ``pair.matched`` -> the coordinates it
     spans), each moment arm about a spanned coordinate that
     ``computeMomentArm`` disagrees with by over :data:`MA_AGREEMENT` replaced by it when it is the
     nearer of the two to the drawn path's ``-dL/dq`` (central differences of step ``step``).
     NaN entries (a step of OpenSim's length inside
-    the difference) stay NaN."""
+    the difference) stay NaN. ``stepped``: coordinate -> the OpenSim states (``pair.os_state``)
+    with it moved by ``+step`` and ``-step``, where the caller has them already (each costs an
+    assembly)."""
     out = dldq.copy()
     for j, cname in enumerate(coords):
         coord = pair.coord(cname)
@@ -66,19 +69,21 @@ def drawn_path_arms(pair: Any, state: Any, values: Mapping[str, float], coords: 
             dynamic = float(force.computeMomentArm(state, coord))
             if abs(dynamic - dldq[i, j]) <= MA_AGREEMENT:
                 continue
-            drawn = drawn if drawn is not None else _drawn_slopes(pair, values, cname, paths, step)
+            drawn = drawn if drawn is not None else _drawn_slopes(pair, values, cname, paths, step,
+                                                                  (stepped or {}).get(cname))
             if abs(dynamic - drawn[i]) < abs(dldq[i, j] - drawn[i]):
                 out[i, j] = dynamic
     return out
 
 
 def _drawn_slopes(pair: Any, values: Mapping[str, float], cname: str, paths: Sequence[int],
-                  step: float) -> dict[int, float]:
-    """Path index -> ``-d(drawn length)/dq`` about ``cname`` (m) by central differences."""
+                  step: float, stepped: tuple[Any, Any] | None = None) -> dict[int, float]:
+    """Path index -> ``-d(drawn length)/dq`` about ``cname`` (m) by central differences; ``stepped``:
+    the states at ``cname`` +-``step`` when made already."""
     asm = bool(pair.dependent)
-    up = pair.os_state({**values, cname: values[cname] + step}, assemble=asm)
+    up = stepped[0] if stepped else pair.os_state({**values, cname: values[cname] + step}, assemble=asm)
     up_len = {i: drawn_length(pair.os_model, up, pair.matched[i][0]) for i in paths}
-    dn = pair.os_state({**values, cname: values[cname] - step}, assemble=asm)
+    dn = stepped[1] if stepped else pair.os_state({**values, cname: values[cname] - step}, assemble=asm)
     return {i: -(up_len[i] - drawn_length(pair.os_model, dn, pair.matched[i][0])) / (2 * step) for i in paths}
 
 

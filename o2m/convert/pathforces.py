@@ -122,19 +122,21 @@ class PathForces:
         ctx = self.ctx
         samples = ctx.pose_samples()
 
-        def held(values: dict[str, float]) -> float:
-            return float(sum(np.linalg.norm(ctx.location_at(a, values) - ctx.location_at(b, values))
-                             for _, a, b in cands))
+        def held(values: dict[str, np.ndarray]) -> np.ndarray:
+            """Summed length (P,) of the candidate segments at P poses (each coordinate's values (P,))."""
+            return sum(np.linalg.norm(ctx.locations(a, values, n) - ctx.locations(b, values, n), axis=1)
+                       for _, a, b in cands)
 
-        lengths = np.array([held(v) for _, v in samples])
+        bases, n = ctx.sample_bases(), len(samples)
+        lengths = held(ctx.coordinate_arrays(bases, n))
         shortest = min(ctx.straight_length(path, k) for k in range(len(samples)))
-        bases = sorted({self.b.drivers[c].base for _, a, b in cands for p in (a, b) for c, _ in p.moving.values()
+        moved = sorted({self.b.drivers[c].base for _, a, b in cands for p in (a, b) for c, _ in p.moving.values()
                         if not ctx.fixed(c)})
         h = PATH_FORCE_FD_STEP
         arms = {}
-        for c in bases:
-            d = [abs(held(self.b.coordinate_values({**base, c: base[c] + h}))
-                     - held(self.b.coordinate_values({**base, c: base[c] - h}))) / (2 * h) for base, _ in samples]
+        for c in moved:
+            d = np.abs(held(ctx.coordinate_arrays({**bases, c: bases[c] + h}, n))
+                       - held(ctx.coordinate_arrays({**bases, c: bases[c] - h}, n))) / (2 * h)
             arms[c] = float(max(d)) * 1e3
         variation = float(lengths.max() - lengths.min())
         pct = 100.0 * variation / max(shortest, 1e-12)

@@ -30,6 +30,11 @@ class PathContext:
         self.exact: dict[tuple[str, str], dict[str, np.ndarray]] = {}
         self._samples: list[tuple[dict[str, float], dict[str, float]]] | None = None
         self._frames: dict[int, dict[str, Transform]] = {}
+        #: Each point's locations (P, 3) at the pose samples, by ``id(point)`` (the point kept
+        #: beside them, so that its id stays its own).
+        self._sample_locations: dict[int, tuple[PathPoint, np.ndarray]] = {}
+        #: Each location function's value at the reference pose, by ``id(function)`` (likewise).
+        self._reference_offsets: dict[int, tuple[object, float]] = {}
 
     def unique(self, name: str) -> str:
         """``name``, or ``name_<k>`` when it is taken; taken from now on."""
@@ -44,13 +49,54 @@ class PathContext:
         """True when ``coordinate`` depends on a locked coordinate only."""
         return self.b.skel.coordinates[self.b.drivers[coordinate].base].locked
 
+    def _reference_offset(self, cname: str, fn) -> float:
+        """``fn`` (a location function of coordinate ``cname``) at the reference pose (m)."""
+        key = id(fn)
+        if key not in self._reference_offsets:
+            self._reference_offsets[key] = (fn, float(fn(np.array([self.b.ref[cname]]))[0]))
+        return self._reference_offsets[key][1]
+
     def location_at(self, point: PathPoint, values: dict[str, float]) -> np.ndarray:
         """Location (3,) of ``point`` in its body frame when the coordinates have ``values``."""
         loc = point.location.copy()
         for i, (cname, fn) in point.moving.items():
-            ref = float(fn(np.array([self.b.ref[cname]]))[0])
-            loc[i] += float(fn(np.array([values[cname]]))[0]) - ref
+            loc[i] += float(fn(np.array([values[cname]]))[0]) - self._reference_offset(cname, fn)
         return loc
+
+    def locations(self, point: PathPoint, values: dict[str, np.ndarray], n: int) -> np.ndarray:
+        """Locations (n, 3) of ``point`` in its body frame at n poses, ``values`` each coordinate's
+        (n,) values: :meth:`location_at` evaluated once per function over all n poses."""
+        loc = np.tile(np.asarray(point.location, dtype=float), (n, 1))
+        for i, (cname, fn) in point.moving.items():
+            loc[:, i] += np.asarray(fn(values[cname]), dtype=float) - self._reference_offset(cname, fn)
+        return loc
+
+    def coordinate_arrays(self, bases: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+        """Every coordinate's values (n,) at n poses whose free independent coordinates have
+        ``bases`` (each (n,)), the others at the reference pose: the builder's
+        ``coordinate_values`` evaluated once per coordinate over all n poses."""
+        base = {name: np.full(n, self.b.ref[name]) for name, d in self.b.drivers.items() if d.base == name}
+        base.update(bases)
+        return {name: np.asarray(d.fn(base[d.base]), dtype=float) for name, d in self.b.drivers.items()}
+
+    def sample_bases(self) -> dict[str, np.ndarray]:
+        """The free independent coordinates' values (P,) at the P pose samples (:meth:`pose_samples`);
+        P = ``len(self.pose_samples())``."""
+        samples = self.pose_samples()
+        return {name: np.array([v[name] for v, _ in samples]) for name in samples[0][0]}
+
+    def sample_locations(self, point: PathPoint) -> np.ndarray:
+        """Locations (P, 3) of ``point`` in its body frame at the P pose samples (cached)."""
+        key = id(point)
+        if key not in self._sample_locations:
+            samples = self.pose_samples()
+            if point.moving:
+                values = {c: np.array([v[c] for _, v in samples]) for c, _ in point.moving.values()}
+                locs = self.locations(point, values, len(samples))
+            else:
+                locs = np.tile(np.asarray(point.location, dtype=float), (len(samples), 1))
+            self._sample_locations[key] = (point, locs)
+        return self._sample_locations[key][1]
 
     @staticmethod
     def active(point: PathPoint, values: dict[str, float]) -> bool:
@@ -85,6 +131,6 @@ class PathContext:
         ``drop``) joined straight (a lower bound of OpenSim's length, which wrapping only lengthens)."""
         values = self.pose_samples()[k][1]
         frames = self.sample_frames(k)
-        pts = [frames[p.body].apply(self.location_at(p, values)) for i, p in enumerate(path.points)
+        pts = [frames[p.body].apply(self.sample_locations(p)[k]) for i, p in enumerate(path.points)
                if i not in drop and self.active(p, values)]
         return float(sum(np.linalg.norm(b - a) for a, b in zip(pts[:-1], pts[1:], strict=True)))

@@ -414,6 +414,7 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
             base = raw + corrections(state)
             arm = np.zeros((len(names), len(coords)))
             asm = bool(pair.dependent)
+            stepped = {}  # coordinate -> its states at +-10 OS_FD_STEP, which drawn_path_arms reuses
             for j, c in enumerate(coords):
                 ma = []
                 for h in (OS_FD_STEP, 10 * OS_FD_STEP):
@@ -422,9 +423,10 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
                     s_dn = pair.os_state({**values, c: values[c] - h}, assemble=asm)
                     dn = pair.os_lengths(s_dn) + corrections(s_dn)
                     ma.append(-(up - dn) / (2 * h))
+                stepped[c] = (s_up, s_dn)
                 # a length discontinuity within the step (a wrap flipping) is no moment arm
                 arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
-            drawn_arm = drawn_path_arms(pair, state, values, coords, plain, arm, 10 * OS_FD_STEP)
+            drawn_arm = drawn_path_arms(pair, state, values, coords, plain, arm, 10 * OS_FD_STEP, stepped)
             gap = drawn_gaps(pair, state, plain, raw)
         except Exception:  # assembly failure: draw another pose
             continue

@@ -84,6 +84,7 @@ class ModelPair:
         self.missing_tendons = [n for n, _, _ in self.forces if n not in tid]
         os_names = {n for n, _, _ in self.forces}
         self.extra_tendons = [n for n in tendon_names if n not in os_names]
+        self._spans: dict[str, set[str]] | None = None
 
     # -- OpenSim ------------------------------------------------------------------------
     def os_state(self, values: Mapping[str, float] | None, assemble: bool = True) -> Any:
@@ -153,7 +154,14 @@ class ModelPair:
     def spanned(self) -> dict[str, set[str]]:
         """Muscle -> independent coordinates it spans in OpenSim: the coordinates of the joints
         connecting the bodies of its path points and wrap objects, those of its moving and
-        conditional points, and the independent coordinates driving any of them."""
+        conditional points, and the independent coordinates driving any of them (found once per
+        pair: it assembles OpenSim at two values of each independent coordinate)."""
+        if self._spans is None:
+            self._spans = self._find_spans()
+        return {name: set(coords) for name, coords in self._spans.items()}
+
+    def _find_spans(self) -> dict[str, set[str]]:
+        """:meth:`spanned`, found anew."""
         opensim = self.opensim
         parent: dict[str, tuple[Any, str]] = {}
         js = self.os_model.getJointSet()

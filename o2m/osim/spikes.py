@@ -78,7 +78,8 @@ def band_suspects(converted: np.ndarray, opensim: np.ndarray) -> np.ndarray:
 def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
                    lengths: np.ndarray | None = None, banded: Sequence[int] = ()) -> dict[int, dict[str, Any]]:
     """The muscles (indices into ``pair.matched``) whose OpenSim length is an isolated spike at
-    the pose of independent ``values``: for some independent coordinate, moving it by
+    the pose of independent ``values``: for some independent coordinate one of ``muscles`` spans
+    (:meth:`ModelPair.spanned`; no other moves their lengths), moving it by
     :data:`SPIKE_STEP` radians (:data:`SPIKE_LINEAR_STEP` m) either way gives two lengths that
     agree with each other within :data:`SPIKE_TOL` while the length at the pose differs from
     their mean by more than :data:`SPIKE_TOL`. A smooth path cannot do that (its second
@@ -99,7 +100,7 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
         return out
     idx = np.asarray(list(muscles), dtype=int)
     base = pair.os_lengths(pair.os_state(values)) if lengths is None else np.asarray(lengths)
-    for c in pair.indep:
+    for c in _spanned_coordinates(pair, list(idx)):
         name = c.getName()
         h = SPIKE_LINEAR_STEP if int(c.getMotionType()) == TRANSLATIONAL else SPIKE_STEP
         up, dn = _neighbours(pair, values, name, h)
@@ -115,7 +116,7 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
             if isolated or beyond:
                 out[int(i)] = _evidence(name, h, base[i], dn[i], up[i])
     banded = [int(i) for i in banded if int(i) not in out]
-    for c in pair.indep if banded else []:
+    for c in _spanned_coordinates(pair, banded) if banded else []:
         name = c.getName()
         h0 = SPIKE_LINEAR_STEP if int(c.getMotionType()) == TRANSLATIONAL else SPIKE_STEP
         for h in (h0 * k for k in BAND_STEPS):
@@ -326,6 +327,15 @@ def opensim_failures(pair: ModelPair, values: Mapping[str, float], muscles: Sequ
         rest = [int(i) for i in banded if int(i) not in out]
         out.update(test(pair, values, rest, lengths) if rest else {})
     return out
+
+
+def _spanned_coordinates(pair: ModelPair, muscles: Sequence[int]) -> list[Any]:
+    """The independent OpenSim coordinates (in ``pair.indep`` order) that any of ``muscles``
+    (indices into ``pair.matched``) spans (:meth:`ModelPair.spanned`): no other coordinate moves
+    their lengths, so only these can show a spike (each costs two OpenSim assemblies)."""
+    spans = pair.spanned()
+    wanted = set().union(*(spans.get(pair.matched[int(i)][0], set()) for i in muscles))
+    return [c for c in pair.indep if c.getName() in wanted]
 
 
 def _neighbours(pair: ModelPair, values: Mapping[str, float], name: str,

@@ -28,11 +28,10 @@ import opensim as osim
 import pytest
 from lxml import etree
 
-from o2m import models
 from o2m.convert.converter import convert
 from o2m.transforms import OSIM_TO_MJ
 from o2m.validate.kinematics import compare_kinematics
-from tests.helpers import add_coupler, convert_options, require_models
+from tests.helpers import add_coupler, convert_options
 
 osim.Logger.setLevelString("error")
 
@@ -919,12 +918,10 @@ def test_massless_intermediate_bodies(tmp_path):
 # An OpenSim 3.x document
 # ---------------------------------------------------------------------------------------------
 
-def test_opensim3_document(tmp_path):
+def test_opensim3_document(bundled_conversion):
     """A 3.x document (MoBL-ARMS, Version 30000) is upgraded and converted: orientations exact,
     positions within the quartics of its shoulder's chain shortcut (:mod:`o2m.convert.shortcuts`)."""
-    require_models()
-    fetched = models.fetch_model_with_geometry("mobl_arms_no_wrap", progress=False)
-    conv = convert(fetched.osim, tmp_path / "out", convert_options(), geometry_dirs=[fetched.geometry_dir])
+    fetched, conv = bundled_conversion("mobl_arms_no_wrap")
     assert conv.xml.exists()
     assert conv.report.source_version < 40000
     mj = mujoco.MjModel.from_xml_path(str(conv.xml))

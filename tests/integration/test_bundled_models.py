@@ -22,12 +22,10 @@ import pytest
 
 from o2m import models
 from o2m.convert.builder import MjcfBuilder
-from o2m.convert.converter import convert
 from o2m.mj.simulate import welded_at_default_pose
 from o2m.osim.document import load_document
 from o2m.osim.skeleton import read_skeleton
 from o2m.validate.kinematics import compare_kinematics
-from tests.helpers import convert_options, require_models
 
 POSES = 200
 POS_TOL = 1e-4  # m (0.1 mm)
@@ -42,11 +40,8 @@ COUPLINGS_BODIES = {"leg6dof9musc": {"tibia_r", "patella_r"}}
 
 
 @pytest.fixture(scope="module", params=NAMES)
-def converted(request, tmp_path_factory):
-    require_models()
-    fetched = models.fetch_model_with_geometry(request.param, progress=False)
-    out = tmp_path_factory.mktemp(request.param)
-    conv = convert(fetched.osim, out, convert_options(), geometry_dirs=[fetched.geometry_dir])
+def converted(request, bundled_conversion):
+    fetched, conv = bundled_conversion(request.param)
     return request.param, fetched.osim, conv
 
 

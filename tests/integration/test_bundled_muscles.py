@@ -16,17 +16,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from o2m import models
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.carriers import CARRIER_ARMATURE, CARRIER_SLOPE_GATE
-from o2m.convert.converter import convert
 from o2m.osim.document import load_document
 from o2m.osim.paths import read_paths
 from o2m.osim.skeleton import SkeletonReader, read_skeleton
 from o2m.osim.spikes import BAND_FRACTION, DETOUR_FRACTION, LOOP_KINDS
 from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, sweep_jumps
 from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_MEDIAN_MM, MA_P95_MM, compare_muscles
-from tests.helpers import approximation_budget, convert_options, require_models
+from tests.helpers import approximation_budget
 
 NAMES = ["tug_of_war", "arm26", "leg6dof9musc", "gait10dof18musc", "gait2354", "gait2392", "mobl_arms_no_wrap"]
 
@@ -57,11 +55,8 @@ JUMP_GAPS: dict[str, dict[str, float]] = {}
 
 
 @pytest.fixture(scope="module", params=NAMES)
-def converted(request, tmp_path_factory):
-    require_models()
-    fetched = models.fetch_model_with_geometry(request.param, progress=False)
-    conv = convert(fetched.osim, tmp_path_factory.mktemp(request.param), convert_options(workers=2),
-                   geometry_dirs=[fetched.geometry_dir])
+def converted(request, bundled_conversion):
+    fetched, conv = bundled_conversion(request.param)
     return request.param, fetched.osim, conv
 
 
@@ -223,11 +218,8 @@ WRAPPED_MOBL_STEPS = {"SUP": "pro_sup"}
 
 
 @pytest.fixture(scope="module")
-def wrapped_mobl(tmp_path_factory):
-    require_models()
-    fetched = models.fetch_model_with_geometry("mobl_arms", progress=False)
-    conv = convert(fetched.osim, tmp_path_factory.mktemp("mobl_arms"), convert_options(workers=2),
-                   geometry_dirs=[fetched.geometry_dir])
+def wrapped_mobl(bundled_conversion):
+    fetched, conv = bundled_conversion("mobl_arms")
     return fetched.osim, conv
 
 
