@@ -128,6 +128,19 @@ def pin_pendulum(name: str, q_range: tuple[float, float] = (-1.0, 1.5),
     return m, arm
 
 
+def arm_path_actuator(model, arm, end: str):
+    """A PathActuator "m" (optimal force 100 N) of ``model`` from P1 on the ground at (-0.2, 0, 0)
+    to the point ``end`` at (0.3, 0, 0) on ``arm`` (m), not yet added to the model."""
+    import opensim as osim
+
+    pa = osim.PathActuator()
+    pa.setName("m")
+    pa.setOptimalForce(100)
+    pa.addNewPathPoint("P1", model.getGround(), osim.Vec3(-0.2, 0.0, 0))
+    pa.addNewPathPoint(end, arm, osim.Vec3(0.3, 0.0, 0))
+    return pa
+
+
 def with_moving_point(text: str, point: str, body: str, locations: tuple[str, str, str]) -> str:
     """The .osim ``text`` with PathPoint ``point`` made a MovingPathPoint on ``body`` whose x, y
     and z locations are the function elements ``locations`` (XML text, m), each driven by the

@@ -21,7 +21,7 @@ import pytest
 from o2m.convert.converter import convert
 from o2m.mj.posing import pose_mujoco
 from o2m.mj.tendons import mujoco_moment_arms
-from tests.helpers import convert_options, pin_pendulum
+from tests.helpers import arm_path_actuator, convert_options, pin_pendulum
 
 osim.Logger.setLevelString("error")
 
@@ -30,11 +30,7 @@ def _pendulum(path, points: list[tuple[str, tuple[float, float, float], tuple[fl
     """Write the pendulum with the ConditionalPathPoints ``points`` (name, location on the arm
     (m), range of q (rad)), in order, between P1 and P4."""
     m, arm = pin_pendulum("pendulum_conditional")
-    pa = osim.PathActuator()
-    pa.setName("m")
-    pa.setOptimalForce(100)
-    pa.addNewPathPoint("P1", m.getGround(), osim.Vec3(-0.2, 0.0, 0))
-    pa.addNewPathPoint("P4", arm, osim.Vec3(0.3, 0.0, 0))
+    pa = arm_path_actuator(m, arm, "P4")
     m.addForce(pa)
     m.finalizeConnections()
     m.initSystem()

@@ -34,7 +34,7 @@ from o2m.mj.posing import pose_mujoco
 from o2m.validate.jumps import sweep_jumps
 from o2m.validate.kinematics import compare_kinematics
 from o2m.validate.muscles import compare_muscles
-from tests.helpers import convert_options, model_file, pin_pendulum
+from tests.helpers import arm_path_actuator, convert_options, model_file, pin_pendulum
 
 osim.Logger.setLevelString("error")
 
@@ -44,11 +44,7 @@ QSTAR = brentq(lambda q: 0.04 * math.sin(q) - 0.02 * (0.3 + 0.2 * math.cos(q)), 
 
 def _pendulum(path, kind: str) -> None:
     m, arm = pin_pendulum(f"pendulum_{kind}", (-1.0 if kind == "conditional" or kind.endswith("_all") else 0.0, 1.5))
-    pa = osim.PathActuator()
-    pa.setName("m")
-    pa.setOptimalForce(100)
-    pa.addNewPathPoint("P1", m.getGround(), osim.Vec3(-0.2, 0.0, 0))
-    pa.addNewPathPoint("P3", arm, osim.Vec3(0.3, 0.0, 0))
+    pa = arm_path_actuator(m, arm, "P3")
     m.addForce(pa)
     if kind.split("_")[0] in ("sphere", "cylinder"):
         w = osim.WrapSphere() if kind.startswith("sphere") else osim.WrapCylinder()
@@ -456,11 +452,7 @@ def _pendulum_through_a_torus(path) -> None:
     through the ring off its axis, so OpenSim bends it toward the axis round the tube (up to 7 mm
     at q = -0.3, 0.24 mm at q = 0)."""
     m, arm = pin_pendulum("torus", (-0.3, 0.3))
-    pa = osim.PathActuator()
-    pa.setName("m")
-    pa.setOptimalForce(100)
-    pa.addNewPathPoint("P1", m.getGround(), osim.Vec3(-0.2, 0.0, 0))
-    pa.addNewPathPoint("P3", arm, osim.Vec3(0.3, 0.0, 0))
+    pa = arm_path_actuator(m, arm, "P3")
     m.addForce(pa)
     w = osim.WrapTorus()
     w.setName("ring")
@@ -522,7 +514,11 @@ class _FakePair:
 
     def __init__(self, length):
         self.indep = [self._Coordinate()]
+        self.matched = [("m", None, None)]
         self.length = length
+
+    def spanned(self):
+        return {"m": {"q"}}
 
     def os_state(self, values):
         return values["q"]
