@@ -141,6 +141,31 @@ def arm_path_actuator(model, arm, end: str):
     return pa
 
 
+def pendulum_lengths(osim_path, xml, qs):
+    """OpenSim's and MuJoCo's lengths (m) of the path actuator "m" of a :func:`pin_pendulum`
+    model and its conversion ``xml`` at the angles ``qs`` (rad) of "q" (MuJoCo's joints driven
+    by equalities follow, as :func:`o2m.mj.posing.pose_mujoco` poses them)."""
+    import opensim as osim
+
+    from o2m.mj.posing import pose_mujoco
+
+    model = osim.Model(str(osim_path))
+    state = model.initSystem()
+    pa = osim.PathActuator.safeDownCast(model.getForceSet().get("m"))
+    coord = model.getCoordinateSet().get("q")
+    m = mujoco.MjModel.from_xml_path(str(xml))
+    d = mujoco.MjData(m)
+    l_os, l_mj = [], []
+    for q in qs:
+        coord.setValue(state, float(q))
+        model.realizePosition(state)
+        l_os.append(pa.getLength(state))
+        pose_mujoco(m, d, {"q": float(q)})
+        mujoco.mj_tendon(m, d)
+        l_mj.append(d.ten_length[m.tendon("m").id])
+    return np.array(l_os), np.array(l_mj)
+
+
 def with_moving_point(text: str, point: str, body: str, locations: tuple[str, str, str]) -> str:
     """The .osim ``text`` with PathPoint ``point`` made a MovingPathPoint on ``body`` whose x, y
     and z locations are the function elements ``locations`` (XML text, m), each driven by the

@@ -19,9 +19,8 @@ import opensim as osim
 import pytest
 
 from o2m.convert.converter import convert
-from o2m.mj.posing import pose_mujoco
 from o2m.mj.tendons import mujoco_moment_arms
-from tests.helpers import arm_path_actuator, convert_options, pin_pendulum
+from tests.helpers import arm_path_actuator, convert_options, pendulum_lengths, pin_pendulum
 
 osim.Logger.setLevelString("error")
 
@@ -44,25 +43,6 @@ def _pendulum(path, points: list[tuple[str, tuple[float, float, float], tuple[fl
     path.write_text(text[:i] + cond + text[i:])
 
 
-def _lengths(osim_path, xml, qs):
-    """OpenSim's and MuJoCo's lengths (m) of "m" at the angles ``qs`` (rad)."""
-    model = osim.Model(str(osim_path))
-    state = model.initSystem()
-    pa = osim.PathActuator.safeDownCast(model.getForceSet().get("m"))
-    coord = model.getCoordinateSet().get("q")
-    m = mujoco.MjModel.from_xml_path(str(xml))
-    d = mujoco.MjData(m)
-    l_os, l_mj = [], []
-    for q in qs:
-        coord.setValue(state, float(q))
-        model.realizePosition(state)
-        l_os.append(pa.getLength(state))
-        pose_mujoco(m, d, {"q": float(q)})
-        mujoco.mj_tendon(m, d)
-        l_mj.append(d.ten_length[m.tendon("m").id])
-    return np.array(l_os), np.array(l_mj)
-
-
 @pytest.mark.parametrize("between", [False, True])
 def test_a_run_of_two_keeps_the_long_lived_point_always_on(tmp_path, between):
     """P2 is on over q's whole range [-1, 1.5], P3 (after it) for q in [-1, 0.2], both bending
@@ -77,7 +57,7 @@ def test_a_run_of_two_keeps_the_long_lived_point_always_on(tmp_path, between):
     xml = conv.xml.read_text()
     assert "P3_cond" in xml and "P2_cond" not in xml
     qs = np.arange(-1.0, 1.5, np.deg2rad(1.0))
-    l_os, l_mj = _lengths(path, conv.xml, qs)
+    l_os, l_mj = pendulum_lengths(path, conv.xml, qs)
     # within the 1 mm sphere's rounding of the bend at P3 (test_wrapping's pendulum: 0.13 mm)
     assert np.abs(l_mj - l_os).max() < 2e-4, np.abs(l_mj - l_os).max()
     # keeping one sphere would miss a detour that is real: P2's where P3 is off, and P3's
@@ -104,7 +84,7 @@ def test_a_range_end_at_the_default_pose_is_on_both_sides_of_a_step(tmp_path):
     path = tmp_path / "end.osim"
     _pendulum(path, [("P2", (0.1, 0.03, 0.0), (-1.0, 0.0))])
     conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
-    l_os, l_mj = _lengths(path, conv.xml, [0.0, 0.01])
+    l_os, l_mj = pendulum_lengths(path, conv.xml, [0.0, 0.01])
     assert abs(l_mj[0] - l_os[0]) < 2e-4  # on at the range end, as OpenSim
     assert l_os[0] - l_os[1] > 1e-3 and abs(l_mj[1] - l_os[1]) < 1e-9  # a real step, off past it
     m = mujoco.MjModel.from_xml_path(str(conv.xml))

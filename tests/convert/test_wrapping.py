@@ -34,7 +34,7 @@ from o2m.mj.posing import pose_mujoco
 from o2m.validate.jumps import sweep_jumps
 from o2m.validate.kinematics import compare_kinematics
 from o2m.validate.muscles import compare_muscles
-from tests.helpers import arm_path_actuator, convert_options, model_file, pin_pendulum
+from tests.helpers import arm_path_actuator, convert_options, model_file, pendulum_lengths, pin_pendulum
 
 osim.Logger.setLevelString("error")
 
@@ -78,22 +78,11 @@ def pendulum(request, tmp_path_factory):
 
 
 def _sweep(osim_path, xml):
-    model = osim.Model(str(osim_path))
-    state = model.initSystem()
-    pa = osim.PathActuator.safeDownCast(model.getForceSet().get("m"))
+    """Angles (rad) over q's range in 1-degree steps, OpenSim's and MuJoCo's lengths (m) there."""
+    model = osim.Model(str(osim_path))  # kept: the coordinate is a view into it
     coord = model.getCoordinateSet().get("q")
-    m = mujoco.MjModel.from_xml_path(str(xml))
-    d = mujoco.MjData(m)
     qs = np.arange(coord.getRangeMin(), coord.getRangeMax(), np.deg2rad(1.0))
-    l_os, l_mj = [], []
-    for q in qs:
-        coord.setValue(state, float(q))
-        model.realizePosition(state)
-        l_os.append(pa.getLength(state))
-        pose_mujoco(m, d, {"q": float(q)})  # joints driven by equalities (a conditional point's switch) follow
-        mujoco.mj_tendon(m, d)
-        l_mj.append(d.ten_length[m.tendon("m").id])
-    return qs, np.array(l_os), np.array(l_mj)
+    return (qs, *pendulum_lengths(osim_path, xml, qs))
 
 
 def test_lengths_match_opensim_over_a_sweep(pendulum):
