@@ -300,14 +300,34 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
 
 def correction_key(model: mujoco.MjModel, sets: list[int], settings: Settings, force_start: bool,
                    keep: int | None = None) -> str:
-    """What a set of corrections depends on: the compiled model (sha256 of its binary), the sets and the budget."""
-    import hashlib
-
-    buf = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
-    mujoco.mj_saveModel(model, None, buf)
+    """What a set of corrections depends on: the compiled model (:func:`model_fingerprint`), the
+    sets and the budget."""
     budget = (list(map(int, sets)), settings.correction_generations, settings.correction_sweeps, settings.seed,
               force_start, keep)
-    return hashlib.sha256(buf.tobytes()).hexdigest() + json.dumps(budget)
+    return model_fingerprint(model) + json.dumps(budget)
+
+
+def model_fingerprint(model: mujoco.MjModel) -> str:
+    """sha256 of every array, name and option of the compiled ``model`` but its asset file paths:
+    MuJoCo keeps those absolute, so they name the folder the model was converted into, and the
+    same model converted into another clone would not find its cached corrections."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for name in sorted(dir(model)):
+        if name.startswith("_") or name == "paths" or name.endswith("pathadr"):
+            continue
+        value = getattr(model, name)
+        if isinstance(value, bytes | np.ndarray):
+            digest.update(name.encode())
+            digest.update(value if isinstance(value, bytes) else np.ascontiguousarray(value).tobytes())
+    for struct in (model.opt, model.stat, model.vis.global_):
+        for name in sorted(dir(struct)):
+            value = getattr(struct, name)
+            if not name.startswith("_") and isinstance(value, int | float | np.ndarray):
+                digest.update(name.encode())
+                digest.update(np.asarray(value).tobytes())
+    return digest.hexdigest()
 
 
 def fresh_set_errors(data_dir: Path, model_dir: str | os.PathLike[str], stage_models: dict[str, mujoco.MjModel],

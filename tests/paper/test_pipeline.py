@@ -30,6 +30,25 @@ def test_correction_key_changes_with_any_model_field_sets_or_budget():
     assert correction_key(m, [1, 2], FULL, False) != key
 
 
+def test_correction_key_does_not_depend_on_the_folder_of_the_model(tmp_path):
+    """MuJoCo keeps a mesh's file path, absolute: the same model in another folder (another
+    clone's out/) has the same key; a mesh changed has another."""
+    xml = ('<mujoco><asset><mesh name="m" file="box.obj"/></asset><worldbody><body><joint type="hinge"/>'
+           '<geom type="mesh" mesh="m" mass="1"/></body></worldbody></mujoco>')
+    keys = []
+    for folder, size in (("a", 0.1), ("b", 0.1), ("c", 0.2)):
+        (tmp_path / folder).mkdir()
+        corners = [(x, y, z) for x in (0, size) for y in (0, size) for z in (0, size)]
+        faces = ["1 2 4 3", "5 7 8 6", "1 5 6 2", "3 4 8 7", "1 3 7 5", "2 6 8 4"]
+        (tmp_path / folder / "box.obj").write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+                                                   + "".join(f"f {f}\n" for f in faces))
+        (tmp_path / folder / "model.xml").write_text(xml)
+        m = mujoco.MjModel.from_xml_path(str(tmp_path / folder / "model.xml"))
+        assert str(tmp_path / folder) in m.paths.decode(errors="replace")
+        keys.append(correction_key(m, [1, 2], FULL, True))
+    assert keys[0] == keys[1] != keys[2]
+
+
 
 
 def test_corrections_computed_equal_corrections_loaded_from_the_cache(tmp_path):
