@@ -137,7 +137,7 @@ def _span_samples(ctx: PathContext, path: Path, span: list[int]) -> tuple[np.nda
         frames = ctx.sample_frames(n)
         for j, k in enumerate(span):
             p = path.points[k]
-            where[n, j] = frames[p.body].apply(ctx.location_at(p, values))
+            where[n, j] = frames[p.body].apply(ctx.sample_locations(p)[n])
             active[n, j] = ctx.active(p, values)
     return where, active
 

@@ -58,10 +58,7 @@ class PathContext:
 
     def location_at(self, point: PathPoint, values: dict[str, float]) -> np.ndarray:
         """Location (3,) of ``point`` in its body frame when the coordinates have ``values``."""
-        loc = point.location.copy()
-        for i, (cname, fn) in point.moving.items():
-            loc[i] += float(fn(np.array([values[cname]]))[0]) - self._reference_offset(cname, fn)
-        return loc
+        return self.locations(point, {c: np.array([values[c]]) for c, _ in point.moving.values()}, 1)[0]
 
     def locations(self, point: PathPoint, values: dict[str, np.ndarray], n: int) -> np.ndarray:
         """Locations (n, 3) of ``point`` in its body frame at n poses, ``values`` each coordinate's
