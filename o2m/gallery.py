@@ -19,7 +19,7 @@ from pathlib import Path, PurePosixPath
 
 from o2m import models
 
-__all__ = ["CORPUS_EXTRA", "GalleryRow", "corpus", "model_names", "run_gallery", "write_page"]
+__all__ = ["CORPUS_EXTRA", "GalleryRow", "corpus", "model_names", "run_gallery", "targets_verdict", "write_page"]
 
 #: Corpus files beyond opensim-models' Models folder (registry paths).
 CORPUS_EXTRA = ("mobl-arms/MoBL_ARMS_model_for_mujoco.osim",)
@@ -30,6 +30,8 @@ import json, sys, time
 from pathlib import Path
 from o2m import compare_kinematics, compare_muscles, models
 from o2m.convert import ConvertOptions, convert
+from o2m.validate.floors import target_misses
+from o2m.validate.muscles import MA_MEDIAN_MM
 registry_path, out, quick, poses = sys.argv[1], Path(sys.argv[2]), sys.argv[3] == "1", int(sys.argv[4])
 fetched = models.fetch_model_with_geometry(registry_path, progress=False)
 t0 = time.perf_counter()
@@ -43,7 +45,10 @@ try:
     m = compare_muscles(fetched.osim, conv.xml, n_poses=poses, seed=0)
     if m.muscles:
         row.update(k2_pct=m.max_len_pct, k3_median_mm=m.ma_median * 1e3, k3_p95_mm=m.ma_p95 * 1e3,
-                   k3_max_mm=m.ma_max * 1e3, muscles=len(m.muscles), spikes_left_out=len(m.opensim_spikes))
+                   k3_max_mm=m.ma_max * 1e3, muscles=len(m.muscles), spikes_left_out=len(m.opensim_spikes),
+                   k3_median_ok=m.ma_median * 1e3 <= MA_MEDIAN_MM)
+        misses = target_misses(fetched.osim, conv.xml, m)
+        row["misses"] = [{"text": x.describe(), "at_floor": x.at_floor} for x in misses]
 except Exception as exc:  # a model without paths, or a comparison that cannot run: say so
     row["k2_error"] = f"{type(exc).__name__}: {exc}"[:300]
 print("ROW " + json.dumps(row, default=float))
@@ -156,6 +161,20 @@ def _fmt(v, spec: str = ".3g") -> str:
     return "" if v is None else format(v, spec)
 
 
+def targets_verdict(measured: dict) -> str:
+    """``met``, ``OpenSim floors`` (every miss is one no tendon can avoid) or ``missed`` (some
+    miss is o2m's), from a gallery row's measurements; empty for a model that did not convert."""
+    if "k1_ok" not in measured:
+        return ""
+    misses = measured.get("misses", [])
+    if not measured["k1_ok"] or not measured.get("k3_median_ok", True):
+        return "**missed**"
+    if not misses:
+        return "met"
+    own = sum(not x["at_floor"] for x in misses)
+    return "OpenSim floors" if own == 0 else f"**missed** ({own} of {len(misses)} o2m's)"
+
+
 def write_page(rows: list[GalleryRow], page: Path, *, quick: bool, poses: int) -> None:
     """``docs/models.md``: the table (K1 to K3, seconds) and one section per model."""
     ok = sum(r.status == "converted" for r in rows)
@@ -167,18 +186,22 @@ def write_page(rows: list[GalleryRow], page: Path, *, quick: bool, poses: int) -
              "K1: worst body position (mm) and orientation (°) error. K2: worst muscle-tendon length error (%). "
              "K3: moment-arm RMS error per muscle and coordinate, median / p95 / max (mm). OpenSim's own failures "
              "(one-pose spikes, short bands, detours past a path point, loops round a wrap, lengths not of the "
-             "path OpenSim draws) are left out and counted. Seconds: "
+             "path OpenSim draws) are left out and counted. Targets: K1 within 0.1 mm and 0.05°, K2 within "
+             "1 %, K3 within 0.5 / 2 / 5 mm; `OpenSim floors` where every miss is one OpenSim's own path "
+             "forces on any tendon (its length steps, or its moment arm is not the derivative of its "
+             "length; `o2m.validate.floors`), listed in the model's section with o2m's own. Seconds: "
              "wall-clock conversion time on the machine that generated this page.", "",
              "| model | converts | K1 mm | K1 ° | K2 % | K3 median / p95 / max mm | OpenSim failures left out "
-             "| seconds |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| targets | seconds |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         m = r.measured
         k3 = (f"{_fmt(m.get('k3_median_mm'))} / {_fmt(m.get('k3_p95_mm'))} / {_fmt(m.get('k3_max_mm'))}"
               if "k3_median_mm" in m else "no muscles")
         status = "yes" if r.status == "converted" else "**no**"
         lines.append(f"| [{r.model}](#{r.model.lower()}) | {status} | {_fmt(m.get('k1_mm'))} | {_fmt(m.get('k1_deg'))} "
-                     f"| {_fmt(m.get('k2_pct'))} | {k3} | {m.get('spikes_left_out', '')} | {r.seconds:.1f} |")
+                     f"| {_fmt(m.get('k2_pct'))} | {k3} | {m.get('spikes_left_out', '')} | {targets_verdict(m)} "
+                     f"| {r.seconds:.1f} |")
     for r in rows:
         lines += ["", f"## {r.model}", "", f"`{r.source}`", ""]
         if r.thumbnail:
@@ -192,6 +215,9 @@ def write_page(rows: list[GalleryRow], page: Path, *, quick: bool, poses: int) -
         if m.get("skipped"):
             lines += ["", "Skipped (what the report says each skip changes):"]
             lines += [f"- {s}" for s in m["skipped"]]
+        if m.get("misses"):
+            lines += ["", "Targets missed, each with the floor OpenSim's own path sets:"]
+            lines += [f"- {x['text']}" for x in m["misses"]]
         if m.get("k2_error"):
             lines += ["", f"Muscle comparison did not run: `{m['k2_error']}`"]
     page.parent.mkdir(parents=True, exist_ok=True)

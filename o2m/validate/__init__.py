@@ -6,6 +6,7 @@ never imports :mod:`o2m.convert`.
 """
 
 from o2m.validate.dynamics import DynamicsReport, compare_dynamics
+from o2m.validate.floors import TargetMiss, target_misses
 from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, sweep_jumps
 from o2m.validate.kinematics import KinematicsReport, compare_kinematics, format_table
 from o2m.validate.muscles import MuscleReport, compare_muscles, format_muscle_table
@@ -15,6 +16,7 @@ __all__ = [
     "DynamicsReport",
     "KinematicsReport",
     "MuscleReport",
+    "TargetMiss",
     "compare_dynamics",
     "compare_kinematics",
     "compare_muscles",
@@ -26,4 +28,5 @@ __all__ = [
     "opensim_length_steps",
     "plot_moment_arms",
     "sweep_jumps",
+    "target_misses",
 ]

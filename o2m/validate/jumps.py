@@ -120,6 +120,7 @@ def opensim_length_steps(
     min_step: float = 5e-4,
     bisections: int = 40,
     assembly_accuracy: float | None = 1e-12,
+    pair: ModelPair | None = None,
 ) -> list[dict[str, Any]]:
     """Discontinuities of OpenSim's own path lengths, and what they cost any continuous tendon.
 
@@ -140,9 +141,10 @@ def opensim_length_steps(
 
     Only steps at the sweep's poses are found (a step that a narrow spike makes, or one away
     from the other coordinates' defaults, can be missed): the floors are lower bounds.
+    ``pair``: the two models already loaded (the paths and ``assembly_accuracy`` are then unused).
     """
 
-    pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    pair = pair or ModelPair(osim_path, mjcf_path, assembly_accuracy)
     names = [n for n, _, _ in pair.matched]
     out: list[dict[str, Any]] = []
     spans = pair.spanned()
@@ -186,6 +188,8 @@ def continuous_tendon_front(
     pcts: Sequence[float] = (LEN_PCT,),
     n: int = 600,
     assembly_accuracy: float | None = 1e-12,
+    pair: ModelPair | None = None,
+    steps: Sequence[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """What any continuous tendon can reach against OpenSim, for one path along one coordinate.
 
@@ -204,12 +208,13 @@ def continuous_tendon_front(
     Returns ``{"q", "length", "moment_arm"`` (computeMomentArm) ``: (n,) arrays; "steps": the
     path's steps along the coordinate; "spikes": [q]; "inconsistency_rms", "inconsistency_max":
     computeMomentArm - (-dL/dq) away from outlying length changes (steps, spikes) (m);
-    "floor_pct": the largest step's floor; "front": {p: {"rms", "max"} (m) or None}}``.
+    "floor_pct": the largest step's floor; "front": {p: {"rms", "max"} (m) or None}}``. ``pair``: the two
+    models already loaded; ``steps``: :func:`opensim_length_steps` of the whole model, already
+    measured (both save reloading and re-sweeping when many paths are asked about).
     """
     from scipy.optimize import lsq_linear
 
-
-    pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    pair = pair or ModelPair(osim_path, mjcf_path, assembly_accuracy)
     c = pair.coord(coordinate)
     force = pair.force(muscle)
     lo, hi = sample_bounds(c)
@@ -226,8 +231,9 @@ def continuous_tendon_front(
     odd = outlying_changes(d)
     spike = one_pose_spikes(d, odd)
     spiky = spike[:-1] | spike[1:]
-    steps = [s for s in opensim_length_steps(osim_path, mjcf_path, assembly_accuracy=assembly_accuracy)
-             if s["path"] == muscle and s["coordinate"] == coordinate]
+    if steps is None:
+        steps = opensim_length_steps(osim_path, mjcf_path, pair=pair)
+    steps = [s for s in steps if s["path"] == muscle and s["coordinate"] == coordinate]
     diff = (arm_mid + d / h)[~odd]  # away from every outlying change: steps, spikes, kinks
     floor = max((st["floor_pct"] for st in steps), default=0.0)
     D = (np.eye(n, k=1) - np.eye(n))[:-1] / h

@@ -1,0 +1,115 @@
+"""Which of a converted model's missed targets are OpenSim's own floors, and which are o2m's.
+
+A target is impossible for any MuJoCo tendon where OpenSim's own path forbids it: its length
+steps (a wrap switching) by more than twice the length target, so a continuous tendon is further
+than the target on one side of the step; or its dynamic moment arm (``computeMomentArm``) is not
+the derivative of its length, so no tendon within the length target has that moment arm (a
+tendon's moment arm is always ``-dL/dq`` of its own length). :func:`target_misses` lists every
+path and (path, coordinate) pair of a :class:`~o2m.validate.muscles.MuscleReport` that misses the
+targets, each with the floor measured along one coordinate (:mod:`o2m.validate.jumps`); a floor
+found there is a lower bound, so a miss without one may still be OpenSim's.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+from o2m.osim.pair import ModelPair
+from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps
+from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_P95_MM, MuscleReport
+
+__all__ = ["TargetMiss", "target_misses"]
+
+#: Poses of the one-coordinate sweep that measures a moment-arm floor.
+FRONT_POSES = 301
+
+
+@dataclass
+class TargetMiss:
+    """One missed target: a path's worst length (``coordinate`` None, ``value`` and ``target``
+    in % of OpenSim's length) or a (path, coordinate) moment-arm RMS (m).
+
+    ``floor``: what no continuous tendon can beat, in the same unit: for a length, half the
+    largest step of OpenSim's length along any coordinate (``floor_coordinate``); for a moment
+    arm, the least RMS from ``computeMomentArm`` of any tendon within the length target (or, where
+    a length step leaves none, within that step's floor) along ``coordinate``. None where none
+    was found. ``at_floor``: the floor is beyond the target, so the target cannot be met.
+    """
+
+    path: str
+    coordinate: str | None
+    value: float
+    target: float
+    floor: float | None = None
+    floor_coordinate: str | None = None
+
+    @property
+    def at_floor(self) -> bool:
+        return self.floor is not None and self.floor > self.target
+
+    def describe(self) -> str:
+        """One line, e.g. ``FPL length 4.32 % > 1 % (OpenSim step floor 2.10 % along flexion)``."""
+        if self.coordinate is None:
+            what = f"{self.path} length {self.value:.3g} % > {self.target:g} %"
+            floor = (f"OpenSim step floor {self.floor:.3g} % along {self.floor_coordinate}"
+                     if self.floor is not None else "no step in OpenSim's length")
+        else:
+            what = (f"{self.path} moment arm about {self.coordinate} {self.value * 1e3:.3g} mm RMS "
+                    f"> {self.target * 1e3:g} mm")
+            floor = (f"any tendon at least {self.floor * 1e3:.3g} mm" if self.floor is not None
+                     else "no floor measured")
+        verdict = "OpenSim's floor" if self.at_floor else "o2m's"
+        return f"{what} ({floor}: {verdict})"
+
+
+def _length_misses(report: MuscleReport, steps: list[dict]) -> list[TargetMiss]:
+    out = []
+    for name, err in report.muscles.items():
+        if err.max_len_pct <= LEN_PCT:
+            continue
+        own = [s for s in steps if s["path"] == name]
+        top = max(own, key=lambda s: s["floor_pct"], default=None)
+        out.append(TargetMiss(name, None, err.max_len_pct, LEN_PCT, top and top["floor_pct"],
+                              top and top["coordinate"]))
+    return out
+
+
+def _arm_misses(report: MuscleReport, pair: ModelPair, steps: list[dict], poses: int) -> list[TargetMiss]:
+    if report.ma_p95 * 1e3 > MA_P95_MM:
+        above = MA_P95_MM
+    elif report.ma_max * 1e3 > MA_MAX_MM:
+        above = MA_MAX_MM
+    else:
+        return []
+    out = []
+    for name, err in report.muscles.items():
+        for cname, arm in err.moment_arms.items():
+            if arm.rms * 1e3 <= above or cname not in pair.indep_names:
+                continue
+            target = (MA_MAX_MM if arm.rms * 1e3 > MA_MAX_MM else MA_P95_MM) * 1e-3
+            step = max((s["floor_pct"] for s in steps if s["path"] == name and s["coordinate"] == cname), default=0.0)
+            pct = max(LEN_PCT, 1.05 * step)  # within a length step's own floor where it leaves none within 1 %
+            front = continuous_tendon_front(pair.osim_path, pair.mjcf_path, name, cname, pcts=(pct,), n=poses,
+                                            pair=pair, steps=steps)["front"][pct]
+            out.append(TargetMiss(name, cname, arm.rms, target, front and front["rms"]))
+    return out
+
+
+def target_misses(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike, report: MuscleReport, *,
+                  poses: int = FRONT_POSES, assembly_accuracy: float | None = 1e-12) -> list[TargetMiss]:
+    """Every missed length and moment-arm target of ``report`` (:func:`~o2m.validate.compare_muscles`
+    of the same two models), each with OpenSim's floor for it: lengths over
+    :data:`~o2m.validate.muscles.LEN_PCT`; where the moment arms' 95th percentile misses
+    :data:`~o2m.validate.muscles.MA_P95_MM`, every pair above it, else where their maximum misses
+    :data:`~o2m.validate.muscles.MA_MAX_MM`, every pair above that (a pair above both is held to
+    the larger). The median's target is not attributed to pairs. Floors come from sweeps of
+    one coordinate, the others at their defaults (``poses`` poses for a moment arm). Lengths first,
+    then moment arms, each largest first."""
+    if report.max_len_pct <= LEN_PCT and report.ma_p95 * 1e3 <= MA_P95_MM and report.ma_max * 1e3 <= MA_MAX_MM:
+        return []
+    pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    steps = opensim_length_steps(osim_path, mjcf_path, pair=pair)
+    lengths = sorted(_length_misses(report, steps), key=lambda m: -m.value)
+    arms = sorted(_arm_misses(report, pair, steps, poses), key=lambda m: -m.value)
+    return lengths + arms
