@@ -16,12 +16,49 @@ import numpy as np
 from o2m.mj.posing import joint_qpos_address
 from o2m.mj.tendons import tendon_length_steps
 from o2m.osim.pair import ModelPair
-from o2m.osim.runtime import sample_bounds
-from o2m.osim.spikes import one_pose_spikes, outlying_changes
+from o2m.osim.runtime import TRANSLATIONAL, sample_bounds
+from o2m.osim.spikes import BAND_STEPS, SPIKE_LINEAR_STEP, SPIKE_STEP, one_pose_spikes, outlying_changes
 from o2m.validate.kinematics import jsonable
 from o2m.validate.muscles import LEN_PCT
 
 __all__ = ["continuous_tendon_front", "opensim_length_steps", "sweep_jumps", "trajectory_jumps"]
+
+
+#: Coordinate distance (rad, m) either side of a bisected step at which its two lengths are read:
+#: OpenSim failing at the bisection's last pose alone (its wrap iterations) makes no step.
+STEP_SIDE = (1e-4, 1e-5)
+#: Two opposite steps of one path closer than this (rad, m: the failure-band test's widest
+#: neighbours, :data:`o2m.osim.spikes.BAND_STEPS`) whose heights cancel within
+#: :data:`BAND_RETURN` of the larger are a band OpenSim's path leaves and returns from, which the
+#: comparison leaves out as a failure: no floor.
+BAND_WIDTH = (SPIKE_STEP * BAND_STEPS[-1], SPIKE_LINEAR_STEP * BAND_STEPS[-1])
+BAND_RETURN = 0.25
+
+
+def _bisect(length, a: float, b: float, la: float, lb: float, bisections: int) -> float:
+    """The coordinate value (rad, m) of a step of ``length(q)`` (m) inside ``[a, b]``, bisected
+    ``bisections`` times towards the larger change."""
+    for _ in range(bisections):
+        mid = 0.5 * (a + b)
+        lm = length(mid)
+        if abs(lm - la) >= abs(lb - lm):
+            b, lb = mid, lm
+        else:
+            a, la = mid, lm
+    return 0.5 * (a + b)
+
+
+def _without_bands(steps: list[dict[str, Any]], width: float) -> list[dict[str, Any]]:
+    """``steps`` of one path along one coordinate without those that pair up into bands."""
+    steps = sorted(steps, key=lambda s: s["at"])
+    band: set[int] = set()
+    for j in range(len(steps) - 1):
+        s, t = steps[j], steps[j + 1]
+        if j in band or t["at"] - s["at"] > width or s["height"] * t["height"] >= 0:
+            continue
+        if abs(s["height"] + t["height"]) <= BAND_RETURN * max(abs(s["height"]), abs(t["height"])):
+            band |= {j, j + 1}
+    return [s for j, s in enumerate(steps) if j not in band]
 
 
 def sweep_jumps(
@@ -139,8 +176,11 @@ def opensim_length_steps(
          "floor_pct": 100 * |height| / 2 / max(length)}  # a lower bound on any continuous
                                                           # tendon's worst length error, in %
 
-    Only steps at the sweep's poses are found (a step that a narrow spike makes, or one away
-    from the other coordinates' defaults, can be missed): the floors are lower bounds.
+    A step's lengths are read :data:`STEP_SIDE` either side of it (OpenSim failing at one pose is
+    no step), and two opposite steps that make a band (:data:`BAND_WIDTH`, :data:`BAND_RETURN`)
+    are left out, as the comparison leaves such bands out. Only steps at the sweep's poses are
+    found (a step that a narrow spike makes, or one away from the other coordinates' defaults, can
+    be missed): the floors are lower bounds.
     ``pair``: the two models already loaded (the paths and ``assembly_accuracy`` are then unused).
     """
 
@@ -160,21 +200,17 @@ def opensim_length_steps(
         qs = pair.sweep_values(c, step, linear_step)
         L = np.array([lengths(cname, q) for q in qs])[:, paths]
         dL = np.diff(L, axis=0)
+        linear = int(c.getMotionType() == TRANSLATIONAL)
         for col, i in enumerate(paths):
+            found = []
             for k in np.flatnonzero(outlying_changes(dL[:, col], min_step / 2)):
-                a, b = float(qs[k]), float(qs[k + 1])
-                la, lb = float(L[k, col]), float(L[k + 1, col])
-                for _ in range(bisections):
-                    mid = 0.5 * (a + b)
-                    lm = float(lengths(cname, mid)[i])
-                    if abs(lm - la) >= abs(lb - lm):
-                        b, lb = mid, lm
-                    else:
-                        a, la = mid, lm
+                at = _bisect(lambda q: float(lengths(cname, q)[i]), float(qs[k]), float(qs[k + 1]),  # noqa: B023
+                             float(L[k, col]), float(L[k + 1, col]), bisections)
+                la, lb = (float(lengths(cname, at + sgn * STEP_SIDE[linear])[i]) for sgn in (-1, 1))
                 if abs(lb - la) > min_step:
-                    out.append({"path": names[i], "coordinate": cname, "at": 0.5 * (a + b),
-                                "height": lb - la, "length": [la, lb],
-                                "floor_pct": 100.0 * abs(lb - la) / 2.0 / max(la, lb)})
+                    found.append({"path": names[i], "coordinate": cname, "at": at, "height": lb - la,
+                                  "length": [la, lb], "floor_pct": 100.0 * abs(lb - la) / 2.0 / max(la, lb)})
+            out += _without_bands(found, BAND_WIDTH[linear])
     out.sort(key=lambda s: -s["floor_pct"])
     return out
 

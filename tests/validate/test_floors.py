@@ -46,3 +46,19 @@ def test_arm26_trilong_is_opensim_floor_and_a_moved_point_is_o2m_miss(bundled_co
     moved = [m for m in target_misses(fetched.osim, xml, rep, poses=101) if m.path == "BRA"]
     assert moved and moved[0].coordinate is None and not moved[0].at_floor, [m.describe() for m in moved]
     assert any(m.coordinate is not None and not m.at_floor for m in moved), [m.describe() for m in moved]
+
+
+def test_two_opposite_steps_close_together_are_a_band_not_a_floor():
+    from o2m.validate.jumps import BAND_WIDTH, _without_bands
+
+    def step(at, height):
+        return {"at": at, "height": height}
+
+    band = [step(0.30, 6e-3), step(0.31, -6.2e-3)]
+    assert _without_bands(band, BAND_WIDTH[0]) == []
+    lasting = [step(0.30, 6e-3), step(0.30 + 2 * BAND_WIDTH[0], -6e-3)]  # apart: two lasting steps
+    assert len(_without_bands(lasting, BAND_WIDTH[0])) == 2
+    same_way = [step(0.30, 6e-3), step(0.31, 6e-3)]  # a staircase, not a return
+    assert len(_without_bands(same_way, BAND_WIDTH[0])) == 2
+    partial = [step(0.30, 6e-3), step(0.31, -2e-3)]  # does not come back
+    assert len(_without_bands(partial, BAND_WIDTH[0])) == 2
