@@ -48,6 +48,18 @@ def _bisect(length, a: float, b: float, la: float, lb: float, bisections: int) -
     return 0.5 * (a + b)
 
 
+def _band_poses(q: np.ndarray, d: np.ndarray, odd: np.ndarray, width: float) -> np.ndarray:
+    """(n + 1,) bool: the sweep poses ``q`` (n + 1,) inside a band, between two opposite outlying
+    changes (``d``, ``odd``: (n,), as for :func:`o2m.osim.spikes.one_pose_spikes`) at most
+    ``width`` apart whose heights cancel within :data:`BAND_RETURN`."""
+    band = np.zeros(len(d) + 1, bool)
+    ks = np.flatnonzero(odd)
+    for k1, k2 in zip(ks[:-1], ks[1:], strict=True):
+        h1, h2 = float(d[k1]), float(d[k2])
+        if q[k2] - q[k1] <= width and h1 * h2 < 0 and abs(h1 + h2) <= BAND_RETURN * max(abs(h1), abs(h2)):
+            band[k1 + 1:k2 + 1] = True
+    return band
+
 def _without_bands(steps: list[dict[str, Any]], width: float) -> list[dict[str, Any]]:
     """``steps`` of one path along one coordinate without those that pair up into bands."""
     steps = sorted(steps, key=lambda s: s["at"])
@@ -238,7 +250,8 @@ def continuous_tendon_front(
     (a bounded least-squares problem over the length at the sweep poses,
     :func:`scipy.optimize.lsq_linear`), or None where OpenSim's largest step leaves none within p
     (:func:`opensim_length_steps`). OpenSim's one-pose spikes (two opposite outlying changes, as
-    :func:`o2m.lengthvia.outlying_changes` finds them) are no target. These are lower bounds for
+    :func:`o2m.lengthvia.outlying_changes` finds them) and the poses inside a band (two opposite
+    ones close together, :data:`BAND_WIDTH`) are no target. These are lower bounds for
     the comparison's errors, which sample every coordinate.
 
     Returns ``{"q", "length", "moment_arm"`` (computeMomentArm) ``: (n,) arrays; "steps": the
@@ -265,7 +278,8 @@ def continuous_tendon_front(
     arm_mid = 0.5 * (arm_a[1:] + arm_a[:-1])
     d = np.diff(length_a)
     odd = outlying_changes(d)
-    spike = one_pose_spikes(d, odd)
+    width = BAND_WIDTH[int(c.getMotionType() == TRANSLATIONAL)]
+    spike = one_pose_spikes(d, odd) | _band_poses(qs, d, odd, width)
     spiky = spike[:-1] | spike[1:]
     if steps is None:
         steps = opensim_length_steps(osim_path, mjcf_path, pair=pair)
