@@ -26,9 +26,10 @@ from o2m.convert.records import JointRecord
 from o2m.osim.paths import Path, PathPoint
 from o2m.transforms import Transform
 
-#: Radius (m) of the wrap sphere that stands for a ConditionalPathPoint: the tendon passes within
-#: this of the point (exactly through it when it bends as at the reference pose).
-CONDITIONAL_RADIUS = 0.001
+#: Radius (m) of the wrap sphere that stands for a ConditionalPathPoint: the tendon passes through
+#: the point when it bends as at the reference pose, and up to two radii from it (the sphere's far
+#: side) where the bend has turned the other way, cutting the corner by about that much.
+CONDITIONAL_RADIUS = 0.0001
 #: A ConditionalPathPoint whose range is no wider than this (rad or m) is active at one value of its
 #: coordinate at most: it is left out (the switch of :func:`conditional_geom` needs a range to fit).
 MIN_RANGE_WIDTH = 1e-9
@@ -295,7 +296,16 @@ def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centr
     i = np.arange(m) + 0.5
     phi, theta = np.arccos(1 - 2 * i / m), np.pi * (1 + 5**0.5) * i
     cand = np.vstack([-n_body, np.c_[np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)]])
-    cost = (((cand @ f.T) < 0) * w[None, :]).sum(axis=1)
+    side = cand @ f.T
+    cost = ((side < 0) * w[None, :]).sum(axis=1)
     best = np.flatnonzero(cost <= cost.min() + 1e-9)
-    u = cand[best[np.argmax(cand[best] @ -n_body)]]
+    # of the ties, the widest angular margin: a pose between the samples whose straight path
+    # passes a little further round must still leave the side site on its side
+    norm = np.linalg.norm(f, axis=1)
+    far = norm > 1e-12
+    if far.any():
+        margin = (side[np.ix_(best, far)] / norm[far]).min(axis=1)
+        u = cand[best[np.argmax(margin)]]
+    else:
+        u = cand[best[np.argmax(cand[best] @ -n_body)]]
     return u / np.linalg.norm(u)

@@ -58,7 +58,7 @@ def test_a_run_of_two_keeps_the_long_lived_point_always_on(tmp_path, between):
     assert "P3_cond" in xml and "P2_cond" not in xml
     qs = np.arange(-1.0, 1.5, np.deg2rad(1.0))
     l_os, l_mj = pendulum_lengths(path, conv.xml, qs)
-    # within the 1 mm sphere's rounding of the bend at P3 (test_wrapping's pendulum: 0.13 mm)
+    # within the conditional sphere's rounding of the bend at P3
     assert np.abs(l_mj - l_os).max() < 2e-4, np.abs(l_mj - l_os).max()
     # keeping one sphere would miss a detour that is real: P2's where P3 is off, and P3's
     assert l_os[np.argmin(np.abs(qs - 1.0))] - _straight(1.0) > 1e-3
@@ -92,3 +92,27 @@ def test_a_range_end_at_the_default_pose_is_on_both_sides_of_a_step(tmp_path):
     fd = mujoco_moment_arms(m, d, {"q": 0.0}, ["q"], method="fd")
     jac = mujoco_moment_arms(m, d, {"q": 0.0}, ["q"], method="jacobian")
     assert np.abs(fd - jac).max() < 1e-6, (fd, jac)
+
+
+@pytest.mark.parametrize("radius", [1e-3, None])
+def test_a_bend_that_turns_over_still_passes_through_the_point(tmp_path, monkeypatch, radius):
+    """P2, 5 mm off the line P1-P4 at q = 0, is on for q in [-1, 1]: the path bends towards +y
+    (arm frame) at q = 0 but towards -y beyond q ~ 0.02, where the tendon touches the sphere on
+    its far side, two radii from the point. With the 1 mm sphere o2m used before that cut the
+    corner by millimetres; CONDITIONAL_RADIUS (None: the converter's) keeps it a tenth of that."""
+    import o2m.convert.conditional as conditional
+
+    if radius is not None:
+        monkeypatch.setattr(conditional, "CONDITIONAL_RADIUS", radius)
+    r = conditional.CONDITIONAL_RADIUS
+    path = tmp_path / "turn.osim"
+    _pendulum(path, [("P2", (0.02, 0.005, 0.0), (-1.0, 1.0))])
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    qs = np.arange(-1.0, 1.0, np.deg2rad(2.0))
+    l_os, l_mj = pendulum_lengths(path, conv.xml, qs)
+    err = np.abs(l_mj - l_os)
+    assert err.max() <= 4 * r, (r, err.max())  # at most two radii on either side of the point
+    if radius is not None:  # the old radius: a corner cut of over a millimetre where the bend turned
+        assert err[qs > 0.5].max() > 1e-3, err.max()
+    else:
+        assert err.max() < 4e-4, err.max()
