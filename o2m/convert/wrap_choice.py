@@ -32,6 +32,8 @@ MAX_VARIANTS = 8
 #: with a margin of 1 point Rajagopal2016's gaslat_l kept a wrap that left it 1.62 % off, not 0.52).
 VARIANT_PCT_FACTOR = 1.2
 VARIANT_PCT_MARGIN = 0.1
+#: The label of a split segment's run that keeps none of its wraps.
+NO_WRAP = "straight"
 
 
 @dataclass(frozen=True)
@@ -45,7 +47,8 @@ class PathVariant:
 
 def _segment_runs(rec: Any, geoms: dict[str, tuple[str, str]]) -> list[tuple[str, frozenset[str]]]:
     """The contiguous runs of the wraps of split ``rec`` (a :class:`~o2m.convert.wrap_split.WrapSplit`),
-    longest first: (label, MuJoCo names left out), given wrap name -> (geom, side site)."""
+    longest first, then none (the segment straight): (label, MuJoCo names left out), given wrap
+    name -> (geom, side site)."""
     n = len(rec.wraps)
     out = []
     for size in range(n, 0, -1):
@@ -55,6 +58,11 @@ def _segment_runs(rec: Any, geoms: dict[str, tuple[str, str]]) -> list[tuple[str
             drop = {name for w in rec.wraps if w not in kept for name in geoms.get(w, ("", "")) if name}
             drop |= {s for k, s in enumerate(rec.sites) if not i <= k < j}  # via k joins wraps k and k+1
             out.append(("+".join(kept), frozenset(drop)))
+    # no wrap at all: where OpenSim's quadrant and finite-cylinder rules, which MuJoCo's side sites
+    # cannot follow, switch its path between ways round, the straight segment can be nearer than
+    # any wrap kept
+    every = {name for w in rec.wraps for name in geoms.get(w, ("", "")) if name}
+    out.append((NO_WRAP, frozenset(every | set(rec.sites))))
     return out
 
 
@@ -185,5 +193,5 @@ def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tup
     return tendon.name, settings, path
 
 
-__all__ = ["MAX_VARIANTS", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant", "drop_from_spec",
+__all__ = ["MAX_VARIANTS", "NO_WRAP", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant", "drop_from_spec",
            "split_variants", "xml_without"]

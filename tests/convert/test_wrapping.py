@@ -371,8 +371,9 @@ def test_a_wrap_goes_on_the_segment_opensim_wraps(tmp_path):
 
 
 def test_split_variants_are_the_contiguous_runs_of_wraps():
-    """Three wraps split by two via points: 6 variants (all, two pairs, three singles); a variant
-    leaves out the other wraps' geoms and side sites and the via points not between its wraps."""
+    """Three wraps split by two via points: 7 variants (all, two pairs, three singles, none); a
+    variant leaves out the other wraps' geoms and side sites and the via points not between its
+    wraps (none: every geom, side site and via point of the segment)."""
     from o2m.convert.wrap_choice import split_variants
     from o2m.convert.wrap_split import WrapSplit
 
@@ -381,7 +382,8 @@ def test_split_variants_are_the_contiguous_runs_of_wraps():
     variants = {v.label: set(v.dropped) for v in split_variants([rec], geoms)["m"]}
     assert variants == {"a+b+c": set(), "a+b": {"gc", "sc", "v2"}, "b+c": {"ga", "sa", "v1"},
                         "a": {"gb", "gc", "sc", "v1", "v2"}, "b": {"ga", "sa", "gc", "sc", "v1", "v2"},
-                        "c": {"ga", "sa", "gb", "v1", "v2"}}
+                        "c": {"ga", "sa", "gb", "v1", "v2"},
+                        "straight": {"ga", "sa", "gb", "gc", "sc", "v1", "v2"}}
     assert split_variants([WrapSplit("m", ("P1", "P2"), ["a"])], geoms) == {}
 
 
