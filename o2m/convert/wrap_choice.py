@@ -193,5 +193,5 @@ def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tup
     return tendon.name, settings, path
 
 
-__all__ = ["MAX_VARIANTS", "NO_WRAP", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant", "drop_from_spec",
-           "split_variants", "xml_without"]
+__all__ = ["MAX_VARIANTS", "NO_WRAP", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant",
+           "drop_from_spec", "split_variants", "xml_without"]
