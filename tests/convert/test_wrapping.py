@@ -396,7 +396,7 @@ def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_w
 
     def fit(label, objective, pct):
         errors = {"objective": objective, "len_max_pct": pct, "poses": 10}
-        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={})
+        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[])
 
     fits = [fit("both", 492.0, 35.4), fit("PEC12hum", 447.0, 26.7), fit("PEC1hh", 398.0, 40.0)]
     best = best_variant(fits)
@@ -546,3 +546,38 @@ def test_no_band_in_a_smooth_length_a_step_or_a_small_bump(length):
 
     for q in np.linspace(0.0, 1.0, 41):
         assert opensim_spikes(_FakePair(length), {"q": float(q)}, [0], banded=[0]) == {}, q
+
+
+def test_a_variant_keeping_no_wrap_is_fitted_and_kept_where_the_straight_path_is_nearest():
+    """A one-hinge tendon whose targets are its straight length: the variant leaving its sphere and
+    side site out (none of its wraps kept) has no parameter, errs by nothing, and is kept over the
+    fitted sphere, which wraps at some poses."""
+    from o2m.convert.wrap_choice import NO_WRAP, PathVariant, best_variant
+    from o2m.convert.wrapfit import _fit_one, _task
+
+    xml = """<mujoco><worldbody><site name="a" pos="0 0 0.1"/><geom name="g" type="sphere" size="0.02"
+      pos="0.05 0 0.02" contype="0" conaffinity="0"/><site name="s" pos="0.05 0 -0.04"/>
+      <body name="b" pos="0.1 0 0"><joint name="q" axis="0 1 0"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>
+      <site name="c" pos="0 0 -0.1"/></body>
+      </worldbody><tendon><spatial name="m"><site site="a"/><geom geom="g" sidesite="s"/><site site="c"/>
+      </spatial></tendon></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    qs = np.linspace(-1.2, 1.2, 24)
+    straight = []
+    for q in qs:
+        data.qpos[0] = q
+        mujoco.mj_kinematics(model, data)
+        straight.append(np.linalg.norm(data.site("a").xpos - data.site("c").xpos))
+    straight = np.array(straight)
+    arm = -np.gradient(straight, qs)[:, None]
+    tg = {"qpos": qs[:, None], "dv": np.ones((len(qs), 1, 1)), "length": straight, "arm": arm,
+          "coordinates": ["q"], "contacts": {}}
+    geoms = [PathGeom("m", "g", "s", "WrapSphere", "G")]
+    fits = [_fit_one(_task("m", xml, geoms, tg, v, 16, 1, 60, [], 1))
+            for v in (PathVariant("G", frozenset()), PathVariant(NO_WRAP, frozenset({"g", "s"})))]
+    assert fits[0].before["len_max_pct"] > 1.0  # the sphere wraps at some poses
+    assert fits[1].geoms == [] and fits[1].n_params == 0
+    assert fits[1].after["len_max_pct"] < 1e-9 and fits[1].check_after["len_max_pct"] < 1e-9
+    kept = best_variant(fits)
+    assert kept.variant == NO_WRAP and set(kept.dropped) == {"g", "s"}
