@@ -6,7 +6,8 @@ one of the wraps (then runs straight past the other); where OpenSim touches the 
 few poses the split costs more than it gains (MoBL-ARMS's TMAJ: 27 % with TMAJ_LAThum alone, 63 %
 split), where it touches them together often it gains (INFSP: 2.5 % split, 22 % alone). So the
 tendon is built with every wrap OpenSim touches there, and each *variant* (a contiguous run of
-those wraps, with the via points between them; the others left out) is fitted to OpenSim's
+those wraps, with the via points between them; the others left out; or none of them, the segment
+straight) is fitted to OpenSim's
 lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`); of the variants whose worst
 length error is near the smallest, the one with the smallest objective over all its poses is kept
 (:func:`best_variant`; :func:`drop_from_spec` removes the rest from the model).
