@@ -91,6 +91,13 @@ def split_variants(splits: Iterable[Any], path_geoms: Sequence[Any],
     return out
 
 
+def whole_and_straight(geoms: Sequence[Any]) -> list[PathVariant]:
+    """The variants of a tendon without a split segment, given its :class:`~o2m.convert.wraps.PathGeom` s:
+    every wrap kept, and none (its geoms and side sites left out)."""
+    every = {name for g in geoms for name in (g.geom, g.sidesite) if name}
+    return [PathVariant("+".join(g.source for g in geoms), frozenset()), PathVariant(NO_WRAP, frozenset(every))]
+
+
 def _count(runs: list[list[Any]]) -> int:
     n = 1
     for r in runs:
@@ -197,4 +204,4 @@ def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tup
 
 
 __all__ = ["MAX_VARIANTS", "NO_WRAP", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant",
-           "drop_from_spec", "split_variants", "xml_without"]
+           "drop_from_spec", "split_variants", "whole_and_straight", "xml_without"]

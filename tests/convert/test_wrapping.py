@@ -581,3 +581,14 @@ def test_a_variant_keeping_no_wrap_is_fitted_and_kept_where_the_straight_path_is
     assert fits[1].after["len_max_pct"] < 1e-9 and fits[1].check_after["len_max_pct"] < 1e-9
     kept = best_variant(fits)
     assert kept.variant == NO_WRAP and set(kept.dropped) == {"g", "s"}
+
+
+def test_a_tendon_without_a_split_is_fitted_whole_and_straight():
+    """Two variants: every wrap (labelled by the OpenSim wraps) and none (its geoms and side sites
+    left out; a wrap without a quadrant has no side site)."""
+    from o2m.convert.wrap_choice import NO_WRAP, whole_and_straight
+
+    geoms = [PathGeom("m", "ga", "sa", "WrapCylinder", "A"), PathGeom("m", "gb", "", "WrapSphere", "B")]
+    whole, straight = whole_and_straight(geoms)
+    assert (whole.label, set(whole.dropped)) == ("A+B", set())
+    assert (straight.label, set(straight.dropped)) == (NO_WRAP, {"ga", "sa", "gb"})
