@@ -134,12 +134,12 @@ def _worst_pct(fit: Any) -> float:
 def best_variant(fits: list[Any]) -> Any:
     """Of one tendon's fitted variants (:class:`o2m.convert.wrapfit.PathFit` s), the one with the
     smallest objective over all poses among those whose worst length error is near the smallest
-    (:data:`VARIANT_PCT_FACTOR`), on a tie the one leaving out most; it records every variant's
-    errors."""
+    (:data:`VARIANT_PCT_FACTOR`), on a tie the first; it records every variant's errors."""
     floor = min(_worst_pct(f) for f in fits)
     eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
-    # equal errors: the variant leaving out most (a wrap fitted out of the path's way is no wrap)
-    best = min(eligible, key=lambda f: (_overall(f), -len(f.dropped)))
+    # on equal errors the first (the most wraps kept): a wrap that acts at none of the sampled
+    # poses may act at others
+    best = min(eligible, key=_overall)
     if len(fits) > 1:
         best.variants = {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
     return best
