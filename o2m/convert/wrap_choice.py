@@ -6,7 +6,8 @@ one of the wraps (then runs straight past the other); where OpenSim touches the 
 few poses the split costs more than it gains (MoBL-ARMS's TMAJ: 27 % with TMAJ_LAThum alone, 63 %
 split), where it touches them together often it gains (INFSP: 2.5 % split, 22 % alone). So the
 tendon is built with every wrap OpenSim touches there, and each *variant* (a contiguous run of
-those wraps, with the via points between them; the others left out) is fitted to OpenSim's
+those wraps, with the via points between them; the others left out; or none of them, the segment
+straight) is fitted to OpenSim's
 lengths and moment arms (:func:`o2m.convert.wrapfit.fit_paths`); of the variants whose worst
 length error is near the smallest, the one with the smallest objective over all its poses is kept
 (:func:`best_variant`; :func:`drop_from_spec` removes the rest from the model).
@@ -32,6 +33,8 @@ MAX_VARIANTS = 8
 #: with a margin of 1 point Rajagopal2016's gaslat_l kept a wrap that left it 1.62 % off, not 0.52).
 VARIANT_PCT_FACTOR = 1.2
 VARIANT_PCT_MARGIN = 0.1
+#: The label of a split segment's run that keeps none of its wraps.
+NO_WRAP = "straight"
 
 
 @dataclass(frozen=True)
@@ -45,7 +48,8 @@ class PathVariant:
 
 def _segment_runs(rec: Any, geoms: dict[str, tuple[str, str]]) -> list[tuple[str, frozenset[str]]]:
     """The contiguous runs of the wraps of split ``rec`` (a :class:`~o2m.convert.wrap_split.WrapSplit`),
-    longest first: (label, MuJoCo names left out), given wrap name -> (geom, side site)."""
+    longest first, then none (the segment straight): (label, MuJoCo names left out), given wrap
+    name -> (geom, side site)."""
     n = len(rec.wraps)
     out = []
     for size in range(n, 0, -1):
@@ -55,6 +59,11 @@ def _segment_runs(rec: Any, geoms: dict[str, tuple[str, str]]) -> list[tuple[str
             drop = {name for w in rec.wraps if w not in kept for name in geoms.get(w, ("", "")) if name}
             drop |= {s for k, s in enumerate(rec.sites) if not i <= k < j}  # via k joins wraps k and k+1
             out.append(("+".join(kept), frozenset(drop)))
+    # no wrap at all: where OpenSim's quadrant and finite-cylinder rules, which MuJoCo's side sites
+    # cannot follow, switch its path between ways round, the straight segment can be nearer than
+    # any wrap kept
+    every = {name for w in rec.wraps for name in geoms.get(w, ("", "")) if name}
+    out.append((NO_WRAP, frozenset(every | set(rec.sites))))
     return out
 
 
@@ -80,6 +89,13 @@ def split_variants(splits: Iterable[Any], path_geoms: Sequence[Any],
         out[tendon] = [PathVariant(" | ".join(c[0] for c in combo), frozenset().union(*[c[1] for c in combo]))
                        for combo in combos]
     return out
+
+
+def whole_and_straight(geoms: Sequence[Any]) -> list[PathVariant]:
+    """The variants of a tendon without a split segment, given its :class:`~o2m.convert.wraps.PathGeom` s:
+    every wrap kept, and none (its geoms and side sites left out)."""
+    every = {name for g in geoms for name in (g.geom, g.sidesite) if name}
+    return [PathVariant("+".join(g.source for g in geoms), frozenset()), PathVariant(NO_WRAP, frozenset(every))]
 
 
 def _count(runs: list[list[Any]]) -> int:
@@ -118,9 +134,11 @@ def _worst_pct(fit: Any) -> float:
 def best_variant(fits: list[Any]) -> Any:
     """Of one tendon's fitted variants (:class:`o2m.convert.wrapfit.PathFit` s), the one with the
     smallest objective over all poses among those whose worst length error is near the smallest
-    (:data:`VARIANT_PCT_FACTOR`); it records every variant's errors."""
+    (:data:`VARIANT_PCT_FACTOR`), on a tie the first; it records every variant's errors."""
     floor = min(_worst_pct(f) for f in fits)
     eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
+    # on equal errors the first (the most wraps kept): a wrap that acts at none of the sampled
+    # poses may act at others
     best = min(eligible, key=_overall)
     if len(fits) > 1:
         best.variants = {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
@@ -185,5 +203,5 @@ def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tup
     return tendon.name, settings, path
 
 
-__all__ = ["MAX_VARIANTS", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant", "drop_from_spec",
-           "split_variants", "xml_without"]
+__all__ = ["MAX_VARIANTS", "NO_WRAP", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant",
+           "drop_from_spec", "split_variants", "whole_and_straight", "xml_without"]

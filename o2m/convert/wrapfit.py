@@ -29,8 +29,9 @@ moment arms match OpenSim's over sampled poses:
 * Optimiser: CMA-ES (:mod:`cma`), two starts per tendon (seeded from its name, so that a fit does
   not change with the others; the best kept), parallel over tendons in a process pool.
 * Variants: a tendon with a split segment (:mod:`o2m.convert.wrap_split`) is fitted once per
-  choice of the wraps kept there (:mod:`o2m.convert.wrap_choice`); the one nearest OpenSim over
-  all its poses is kept.
+  choice of the wraps kept there (:mod:`o2m.convert.wrap_choice`), none of them included; any
+  other tendon whole and straight (its wraps left out); the one nearest OpenSim over all its
+  poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
   start. Each tendon's errors before and after go into the conversion report.
@@ -51,7 +52,7 @@ import numpy as np
 from lxml import etree
 
 from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets
-from o2m.convert.wrap_choice import best_variant, drop_from_spec, xml_without
+from o2m.convert.wrap_choice import best_variant, drop_from_spec, whole_and_straight, xml_without
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
 
@@ -485,7 +486,8 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     :class:`o2m.lengthvia.LengthVia` records) the tendons whose lengths are designed there (their
     targets are those lengths); ``vias`` (tendon -> site names) the via sites fitted with a
     tendon's geoms (:mod:`o2m.convert.wrap_split`'s); ``variants`` (tendon -> its
-    :class:`o2m.convert.wrap_choice.PathVariant` s) the choices of wraps fitted for a tendon, the one
+    :class:`o2m.convert.wrap_choice.PathVariant` s) the choices of wraps fitted for a tendon (any
+    other: whole and straight, :func:`~o2m.convert.wrap_choice.whole_and_straight`), the one
     with the smallest objective over all its poses kept. Each tendon's CMA-ES seed follows from
     ``seed`` and its name alone. Returns one :class:`PathFit` per tendon, in ``path_geoms`` order.
     """
@@ -511,7 +513,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         tg = targets.get(tendon)
         if tg is None or len(tg["qpos"]) < 2:
             continue
-        for variant in (variants or {}).get(tendon) or [None]:
+        for variant in (variants or {}).get(tendon) or whole_and_straight(geoms):
             tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, len(tg["qpos"]) - 1),
                                tendon_seed(seed, tendon), budget, list((vias or {}).get(tendon, [])),
                                int(sizes["starts"] if starts is None else starts)))

@@ -285,7 +285,7 @@ def _grid_errors(osim_path, xml) -> np.ndarray:
 
 def test_two_wraps_on_a_segment_two_coordinates_move_keep_the_best_fitted(tmp_path):
     """Both cylinders get a sub-segment, a via point between them; then each choice of wraps (both,
-    either alone) is fitted and the one nearest OpenSim kept, within the 1 % length target. OpenSim's
+    either alone, none) is fitted and the one nearest OpenSim kept, within the 1 % length target. OpenSim's
     own two-wrap length is not that of the path it draws here (its 8 wrap iterations keep the first
     cylinder's arc from an earlier iteration: 0.568 m where its drawn path is 0.595 m at q1 = q2 =
     -0.5), so no tendon follows it exactly; measured: both wraps 3.5 mm (0.62 %) at worst on the
@@ -294,7 +294,7 @@ def test_two_wraps_on_a_segment_two_coordinates_move_keep_the_best_fitted(tmp_pa
     _two_link_over_two_cylinders(osim_path)
     conv = convert(osim_path, tmp_path / "split", convert_options(fit_mechanics=False, workers=1))
     (fit,) = conv.report.path_fits
-    assert set(fit["variants"]) == {"first+second", "first", "second"}
+    assert set(fit["variants"]) == {"first+second", "first", "second", "straight"}
     objective = {label: v["objective"] for label, v in fit["variants"].items()}
     assert objective[fit["variant"]] == min(objective.values())  # their worst lengths are close here
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
@@ -371,8 +371,9 @@ def test_a_wrap_goes_on_the_segment_opensim_wraps(tmp_path):
 
 
 def test_split_variants_are_the_contiguous_runs_of_wraps():
-    """Three wraps split by two via points: 6 variants (all, two pairs, three singles); a variant
-    leaves out the other wraps' geoms and side sites and the via points not between its wraps."""
+    """Three wraps split by two via points: 7 variants (all, two pairs, three singles, none); a
+    variant leaves out the other wraps' geoms and side sites and the via points not between its
+    wraps (none: every geom, side site and via point of the segment)."""
     from o2m.convert.wrap_choice import split_variants
     from o2m.convert.wrap_split import WrapSplit
 
@@ -381,7 +382,8 @@ def test_split_variants_are_the_contiguous_runs_of_wraps():
     variants = {v.label: set(v.dropped) for v in split_variants([rec], geoms)["m"]}
     assert variants == {"a+b+c": set(), "a+b": {"gc", "sc", "v2"}, "b+c": {"ga", "sa", "v1"},
                         "a": {"gb", "gc", "sc", "v1", "v2"}, "b": {"ga", "sa", "gc", "sc", "v1", "v2"},
-                        "c": {"ga", "sa", "gb", "v1", "v2"}}
+                        "c": {"ga", "sa", "gb", "v1", "v2"},
+                        "straight": {"ga", "sa", "gb", "gc", "sc", "v1", "v2"}}
     assert split_variants([WrapSplit("m", ("P1", "P2"), ["a"])], geoms) == {}
 
 
@@ -394,7 +396,7 @@ def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_w
 
     def fit(label, objective, pct):
         errors = {"objective": objective, "len_max_pct": pct, "poses": 10}
-        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={})
+        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[])
 
     fits = [fit("both", 492.0, 35.4), fit("PEC12hum", 447.0, 26.7), fit("PEC1hh", 398.0, 40.0)]
     best = best_variant(fits)
@@ -544,3 +546,52 @@ def test_no_band_in_a_smooth_length_a_step_or_a_small_bump(length):
 
     for q in np.linspace(0.0, 1.0, 41):
         assert opensim_spikes(_FakePair(length), {"q": float(q)}, [0], banded=[0]) == {}, q
+
+
+def test_a_variant_keeping_no_wrap_is_fitted_and_kept_where_the_straight_path_is_nearest():
+    """A one-hinge tendon whose targets are its straight length: the variant leaving its sphere and
+    side site out (none of its wraps kept) has no parameter, errs by nothing, and is kept over the
+    sphere, which wraps at some poses (not fitted here: a sphere fitted out of the path's way ties
+    with the straight variant, and on a tie the wraps are kept)."""
+    from o2m.convert.wrap_choice import NO_WRAP, PathVariant, best_variant
+    from o2m.convert.wrapfit import _fit_one, _task
+
+    xml = """<mujoco><worldbody><site name="a" pos="0 0 0.1"/><geom name="g" type="sphere" size="0.02"
+      pos="0.05 0 0.02" contype="0" conaffinity="0"/><site name="s" pos="0.05 0 -0.04"/>
+      <body name="b" pos="0.1 0 0"><joint name="q" axis="0 1 0"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>
+      <site name="c" pos="0 0 -0.1"/></body>
+      </worldbody><tendon><spatial name="m"><site site="a"/><geom geom="g" sidesite="s"/><site site="c"/>
+      </spatial></tendon></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    qs = np.linspace(-1.2, 1.2, 24)
+    straight = []
+    for q in qs:
+        data.qpos[0] = q
+        mujoco.mj_kinematics(model, data)
+        straight.append(np.linalg.norm(data.site("a").xpos - data.site("c").xpos))
+    straight = np.array(straight)
+    arm = -np.gradient(straight, qs)[:, None]
+    tg = {"qpos": qs[:, None], "dv": np.ones((len(qs), 1, 1)), "length": straight, "arm": arm,
+          "coordinates": ["q"], "contacts": {}}
+    geoms = [PathGeom("m", "g", "s", "WrapSphere", "G")]
+    fits = [_fit_one(_task("m", xml, geoms, tg, v, 16, 1, 0, [], 1))
+            for v in (PathVariant("G", frozenset()), PathVariant(NO_WRAP, frozenset({"g", "s"})))]
+    assert fits[0].before["len_max_pct"] > 1.0  # the sphere wraps at some poses
+    assert fits[1].geoms == [] and fits[1].n_params == 0
+    assert fits[1].after["len_max_pct"] < 1e-9 and fits[1].check_after["len_max_pct"] < 1e-9
+    kept = best_variant(fits)
+    assert kept.variant == NO_WRAP and set(kept.dropped) == {"g", "s"}
+    fits[0].after, fits[0].check_after = fits[1].after, fits[1].check_after  # equal errors: wraps kept
+    assert best_variant(fits).variant == "G"
+
+
+def test_a_tendon_without_a_split_is_fitted_whole_and_straight():
+    """Two variants: every wrap (labelled by the OpenSim wraps) and none (its geoms and side sites
+    left out; a wrap without a quadrant has no side site)."""
+    from o2m.convert.wrap_choice import NO_WRAP, whole_and_straight
+
+    geoms = [PathGeom("m", "ga", "sa", "WrapCylinder", "A"), PathGeom("m", "gb", "", "WrapSphere", "B")]
+    whole, straight = whole_and_straight(geoms)
+    assert (whole.label, set(whole.dropped)) == ("A+B", set())
+    assert (straight.label, set(straight.dropped)) == (NO_WRAP, {"ga", "sa", "gb"})
