@@ -209,7 +209,7 @@ def test_simulates_one_second_of_random_excitation(converted):
 #: torus stand-ins and the two name-seeded fit starts: 58.8 % (SUP), 0.407 / 10.4 / 14.1 mm.
 #: PECM/LAT keep the no-wrap model's same-body floor against computeMomentArm (8.4-12.4 mm RMS
 #: about shoulder_elv, asserted there). SUP's 24 % is OpenSim's own step (WRAPPED_MOBL_FLOORS,
-#: asserted below). Not the targets: PECM1 19 %, LAT2 12 % (WRAPPED_MOBL_OWN).
+#: asserted below). Not the targets: PECM1 16 %, LAT2 12 % (WRAPPED_MOBL_OWN).
 WRAPPED_MOBL = {"len_pct": 26.0, "ma_median_mm": 0.35, "ma_p95_mm": 9.2, "ma_max_mm": 14.5, "left_out": 80}
 #: The wrapped MoBL-ARMS's missed targets (same report) that OpenSim's own path forces on any
 #: tendon (o2m.validate.floors; (path, None) for a length, (path, coordinate) for a moment arm):
