@@ -67,6 +67,7 @@ from o2m.convert.coupling_plan import (
     quartic_coupling,
 )
 from o2m.convert.couplings import AxisFit, CouplingFit
+from o2m.convert.ellipsoid_joints import add_surface_joint
 from o2m.convert.inertials import (
     COMPLEMENT_ARMATURE,
     main_inertias,
@@ -228,6 +229,9 @@ class MjcfBuilder:
         return self.drivers[ax.coordinate].then(ax.function)
 
     def _add_joint(self, joint: Joint) -> None:
+        if joint.surface is not None:
+            add_surface_joint(self, joint)
+            return
         q0 = {name: self.ref[name] for name in self.skel.coordinates}
         r0 = [ax.value(q0) for ax in joint.rotations]
         consts = [axis_angle_matrix(ax.axis, v) for ax, v in zip(joint.rotations, r0, strict=True)]
@@ -308,6 +312,8 @@ class MjcfBuilder:
         q0 = {name: self.ref[name] for name in self.skel.coordinates}
         out, dofs = [], {}
         for joint in self._ordered_joints():
+            if joint.surface is not None:
+                continue  # its hinges' couplings are quartics (o2m.convert.ellipsoid_joints)
             moving = [(ax, "slide") for ax in joint.translations] + [(ax, "hinge") for ax in joint.rotations]
             moving = [(ax, kind) for ax, kind in moving if not self.is_fixed(ax)]
             complements = [(ax, k) for ax, k in moving if self._mj_joint_name(joint, ax)[1]

@@ -51,7 +51,7 @@ from o2m.convert.force_context import (
 )
 from o2m.convert.records import Approximation
 from o2m.osim import runtime
-from o2m.osim.skeleton import JOINT_AXES, Skeleton, Skipped
+from o2m.osim.skeleton import Skeleton, Skipped
 
 __all__ = ["convert_coordinate_limit_force", "fit_deadband", "measure_limit_forces", "motion_type"]
 
@@ -72,8 +72,8 @@ def motion_type(skel: Skeleton, coordinate: str) -> str:
     coordinates' kinds."""
     coord = skel.coordinates[coordinate]
     joint = next(j for j in skel.joints if j.name == coord.joint)
-    if joint.type != "CustomJoint":
-        kind = JOINT_AXES[joint.type][joint.coordinates.index(coordinate)][0]
+    if joint.type != "CustomJoint":  # one identity axis per coordinate
+        kind = next(ax.kind for ax in joint.rotations + joint.translations if ax.coordinate == coordinate)
         return "rotational" if kind == "rotation" else "translational"
     out = None
     for ax in joint.rotations + joint.translations:  # OpenSim's order: rotation1-3, translation1-3

@@ -143,14 +143,15 @@ def _chain_above(skel: Skeleton, drivers: dict[str, Driver], by_child: dict[str,
                  joint: Joint) -> tuple[str, list[Joint]] | None:
     """(e, the joints from A down to ``joint``) when the rule's first two conditions hold, else None."""
     bases = _moving_bases(skel, drivers, joint)
-    if len(bases) != 1:
+    if len(bases) != 1 or joint.surface is not None:  # chain_poses follows the canonical form only
         return None
     (base,) = bases
     own = [ax.coordinate for ax in joint.rotations + joint.translations if not is_fixed(skel, drivers, ax)]
     if any(drivers[c].base == c for c in own) or _named_by_forces(skel, set(own)):
         return None
     chain = [joint]
-    while chain[-1].parent in by_child and _moving_bases(skel, drivers, by_child[chain[-1].parent]) == {base}:
+    while chain[-1].parent in by_child and _moving_bases(skel, drivers, by_child[chain[-1].parent]) == {base} \
+            and by_child[chain[-1].parent].surface is None:
         chain.append(by_child[chain[-1].parent])
     if len(chain) < 2:
         return None

@@ -11,6 +11,11 @@ Canonical joint form. Every OpenSim joint type is written as OpenSim's CustomJoi
 with X_PF the parent frame in the parent body, X_BM the child frame in the child body,
 translations t_k along axes e_k of F, and rotations r_i applied about body-fixed axes a_i.
 A PinJoint is one rotation about Z, a SliderJoint one translation along X, and so on.
+
+EllipsoidJoint and ScapulothoracicJoint do not fit that form: Simbody's Ellipsoid mobilizer
+moves the joint frame's origin over an ellipsoid as it turns (:class:`EllipsoidSurface`). Their
+joints keep the coordinates' rotation axes in ``rotations`` (X, Y, Z and the winging axis) and
+carry the surface in ``Joint.surface``, which :meth:`Joint.transform` follows exactly.
 """
 
 from __future__ import annotations
@@ -41,7 +46,10 @@ JOINT_AXES: dict[str, list[tuple[str, tuple[float, float, float]]]] = {
                   ("translation", _X), ("translation", _Y), ("translation", _Z)],
     "PlanarJoint": [("rotation", _Z), ("translation", _X), ("translation", _Y)],
 }
-SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"}
+#: Joint types built on Simbody's Ellipsoid mobilizer (:class:`EllipsoidSurface`), with their
+#: number of coordinates.
+SURFACE_JOINTS = {"EllipsoidJoint": 3, "ScapulothoracicJoint": 4}
+SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"} | frozenset(SURFACE_JOINTS)
 #: The six axes of a CustomJoint's SpatialTransform.
 TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
 
@@ -135,8 +143,38 @@ class TransformAxis:
 
 
 @dataclass
+class EllipsoidSurface:
+    """Simbody's Ellipsoid mobilizer inside an EllipsoidJoint or ScapulothoracicJoint.
+
+    With R = Rx(q1) Ry(q2) Rz(q3) (body-fixed X-Y-Z angles, the joint's first three
+    coordinates), the mobilizer's M frame sits in its F frame at
+    ``X_FM = (R, diag(radii) R e_z)``: on the ellipsoid of semi-axes ``radii`` (m, along F's x,
+    y, z) centred on F's origin. A ScapulothoracicJoint turns F by +90 deg about z in its parent
+    frame (the thorax's x and y radii swap) and M back by -90 deg, then winges: a rotation by
+    its fourth coordinate about ``winging_axis`` through ``winging_point`` (that frame's).
+    """
+
+    radii: np.ndarray  # (3,) m
+    frame: Transform  # F in the joint's parent frame
+    after: Transform  # the frame after M, in M
+    winging_axis: np.ndarray | None = None  # (3,) unit
+    winging_point: np.ndarray | None = None  # (3,) m
+
+    def transform(self, q: list[float]) -> Transform:
+        """The frame after the surface (and the winging) in the joint's parent frame, at angles ``q`` (rad)."""
+        rot = axis_angle_matrix(np.array(_X), q[0]) @ axis_angle_matrix(np.array(_Y), q[1]) \
+            @ axis_angle_matrix(np.array(_Z), q[2])
+        out = self.frame @ Transform(rot, self.radii * rot[:, 2]) @ self.after
+        if self.winging_axis is not None:
+            p = self.winging_point
+            out = out @ Transform(pos=p) @ Transform(axis_angle_matrix(self.winging_axis, q[3])) @ Transform(pos=-p)
+        return out
+
+
+@dataclass
 class Joint:
-    """A joint in canonical form: ``parent_frame`` in ``parent`` and ``child_frame`` in ``child``."""
+    """A joint in canonical form: ``parent_frame`` in ``parent`` and ``child_frame`` in ``child``;
+    ``surface`` for the two joint types on Simbody's Ellipsoid mobilizer (module docstring)."""
 
     name: str
     type: str
@@ -148,9 +186,13 @@ class Joint:
     translations: list[TransformAxis]
     coordinates: list[str]
     element: etree._Element
+    surface: EllipsoidSurface | None = None
 
     def transform(self, coords: dict[str, float]) -> Transform:
         """X_PB: the child body frame in the parent body frame at coordinate values ``coords``."""
+        if self.surface is not None:
+            inner = self.surface.transform([ax.value(coords) for ax in self.rotations])
+            return self.parent_frame @ inner @ self.child_frame.inverse()
         t = sum((ax.value(coords) * ax.axis for ax in self.translations), np.zeros(3))
         rot = np.eye(3)
         for ax in self.rotations:
@@ -386,6 +428,8 @@ class SkeletonReader:
                 (rotations if kind == "rotation" else translations).append(axobj)
             rotations.sort(key=lambda a: a.name)
             translations.sort(key=lambda a: a.name)
+        elif el.tag in SURFACE_JOINTS:
+            return self.surface_joint(el, parent, child, x_pf, x_bm, names)
         else:
             spec = JOINT_AXES[el.tag]
             if len(names) != len(spec):
@@ -395,6 +439,35 @@ class SkeletonReader:
                 axobj = TransformAxis(f"{kind}{i + 1}", kind, np.array(axis), cname, ident, el)
                 (rotations if kind == "rotation" else translations).append(axobj)
         return Joint(el.get("name"), el.tag, parent, child, x_pf, x_bm, rotations, translations, names, el)
+
+    def surface_joint(self, el: etree._Element, parent: str, child: str, x_pf: Transform, x_bm: Transform,
+                      names: list[str]) -> Joint:
+        """An EllipsoidJoint or ScapulothoracicJoint (:class:`EllipsoidSurface`), as OpenSim 4.6 builds it."""
+        if len(names) != SURFACE_JOINTS[el.tag]:
+            raise self.doc.error(el, f"has {len(names)} coordinates; a {el.tag} has {SURFACE_JOINTS[el.tag]}")
+        axes = [np.array(_X), np.array(_Y), np.array(_Z)]
+        tag = "radii_x_y_z" if el.tag == "EllipsoidJoint" else "thoracic_ellipsoid_radii_x_y_z"
+        if el.find(tag) is None:  # OpenSim's default is NaN
+            raise self.doc.error(el, f"lacks <{tag}>")
+        if el.tag == "EllipsoidJoint":
+            radii = _floats(el.find("radii_x_y_z"), 3, self.doc, "radii_x_y_z")
+            surface = EllipsoidSurface(radii, Transform(), Transform())
+        else:
+            radii = _floats(el.find("thoracic_ellipsoid_radii_x_y_z"), 3, self.doc, "thoracic_ellipsoid_radii_x_y_z")
+            origin = el.find("scapula_winging_axis_origin")
+            direction = el.find("scapula_winging_axis_direction")
+            ox, oy = _floats(origin, 2, self.doc, "scapula_winging_axis_origin") if origin is not None else (0.0, 0.0)
+            wd = float(_floats(direction, 1, self.doc, "scapula_winging_axis_direction")[0]) \
+                if direction is not None else 0.0
+            quarter = axis_angle_matrix(np.array(_Z), np.pi / 2)
+            wing = np.array([-np.sin(wd), np.cos(wd), 0.0])
+            surface = EllipsoidSurface(radii[[1, 0, 2]], Transform(quarter), Transform(quarter.T), wing,
+                                       np.array([ox, oy, 0.0]))
+            axes.append(wing)
+        ident = _identity_function()
+        rotations = [TransformAxis(f"rotation{i + 1}", "rotation", ax, c, ident, el)
+                     for i, (ax, c) in enumerate(zip(axes, names, strict=True))]
+        return Joint(el.get("name"), el.tag, parent, child, x_pf, x_bm, rotations, [], names, el, surface)
 
     def read(self) -> Skeleton:
         doc = self.doc

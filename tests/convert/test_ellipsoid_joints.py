@@ -1,0 +1,136 @@
+"""EllipsoidJoint and ScapulothoracicJoint: converted to exact hinge chains, checked against OpenSim.
+
+Each test builds ground -E-> b1 -Pin-> b2 with the opensim API (E the ellipsoid joint type,
+translated and rotated offset frames on both sides, bodies with an off-centre COM and a full
+inertia), converts it and compares the MuJoCo model with OpenSim over random poses with
+:func:`o2m.validate.compare_kinematics`: body frames agree to 1e-9 m and 1e-9 rad for every
+set of radii, because the chain (:mod:`o2m.convert.ellipsoid_joints`) is exact.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import opensim as osim
+import pytest
+
+from o2m.convert.converter import convert
+from o2m.convert.ellipsoid_joints import surface_steps
+from o2m.validate.kinematics import compare_kinematics
+from tests.convert.test_joint_types import BODIES, EXACT, OFFSETS, Result, _steps_cleanly, assert_inertia, jid
+from tests.helpers import convert_options
+
+osim.Logger.setLevelString("error")
+
+N_POSES = 60
+#: Seth et al.'s thoracoscapular model: thorax ellipsoid about 0.07 x 0.15 x 0.07 m, scapula
+#: abduction, elevation, upward rotation and winging within about ±0.5 rad.
+SETH_RADII = (0.07, 0.15, 0.07)
+SETH_RANGE = (-0.5, 0.5)
+WIDE_RANGE = (-1.2, 1.0)
+
+
+def build(path: Path, jtype: str, radii, rng=SETH_RANGE, *, locked: int | None = None,
+          winging=((0.01, -0.02), 0.4)) -> str:
+    """Print ground -``jtype``-> b1 -Pin-> b2 to ``path``; coordinates ``e0``.. in ``rng``."""
+    m = osim.Model()
+    m.setName(path.stem)
+    bodies = {}
+    for name in ("b1", "b2"):
+        mass, com, inertia = BODIES[name]
+        bodies[name] = osim.Body(name, mass, osim.Vec3(*com), osim.Inertia(*inertia))
+        m.addBody(bodies[name])
+    lp, op, lc, oc = (osim.Vec3(*v) for v in OFFSETS[0])
+    if jtype == "EllipsoidJoint":
+        joint = osim.EllipsoidJoint("e", m.getGround(), lp, op, bodies["b1"], lc, oc, osim.Vec3(*radii))
+    else:
+        joint = osim.ScapulothoracicJoint("e", m.getGround(), lp, op, bodies["b1"], lc, oc, osim.Vec3(*radii),
+                                          osim.Vec2(*winging[0]), winging[1])
+    m.addJoint(joint)
+    lp, op, lc, oc = (osim.Vec3(*v) for v in OFFSETS[1])
+    m.addJoint(osim.PinJoint("pin", bodies["b1"], lp, op, bodies["b2"], lc, oc))
+    for i in range(joint.numCoordinates()):
+        c = joint.upd_coordinates(i)
+        c.setName(f"e{i}")
+        c.setRangeMin(rng[0])
+        c.setRangeMax(rng[1])
+        c.setDefaultValue(0.1 * (i + 1))
+        if i == locked:
+            c.setDefaultLocked(True)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return str(path)
+
+
+def run(osim_path: str, tmp_path: Path) -> Result:
+    conv = convert(osim_path, tmp_path / "out", convert_options())
+    rep = compare_kinematics(osim_path, conv.xml, n_poses=N_POSES, seed=1)
+    assert rep.n_poses == N_POSES and rep.skipped_poses == 0
+    assert rep.missing_bodies == [] and all(b.startswith("b1_ellipsoid") for b in rep.extra_bodies)
+    r = Result(osim_path, conv, rep, mujoco.MjModel.from_xml_path(str(conv.xml)))
+    assert_inertia(r)
+    return r
+
+
+def hinge_count(jtype: str, radii) -> int:
+    mobilizer = np.array(radii) if jtype == "EllipsoidJoint" else np.array(radii)[[1, 0, 2]]
+    steps = surface_steps(mobilizer)
+    return sum(not isinstance(s, float) for s in steps) + (jtype == "ScapulothoracicJoint")
+
+
+CASES = [
+    ("EllipsoidJoint", (0.1, 0.1, 0.1), WIDE_RANGE, 3),  # a sphere: three hinges, nothing driven
+    ("EllipsoidJoint", (0.15, 0.07, 0.07), WIDE_RANGE, 4),  # b = c
+    ("EllipsoidJoint", (0.07, 0.15, 0.07), WIDE_RANGE, 6),  # a = c
+    ("EllipsoidJoint", (0.05, 0.08, 0.12), WIDE_RANGE, 7),  # general: an intermediate body
+    ("ScapulothoracicJoint", SETH_RADII, SETH_RANGE, 5),  # thorax x = z: b = c after the swap
+    ("ScapulothoracicJoint", (0.07, 0.15, 0.09), WIDE_RANGE, 8),
+]
+
+
+@pytest.mark.parametrize(("jtype", "radii", "rng", "hinges"), CASES)
+def test_ellipsoid_joint_exact(jtype, radii, rng, hinges, tmp_path):
+    """The chain follows OpenSim to 1e-9 over random poses; each coordinate's MuJoCo hinge carries
+    its value (compare_kinematics writes OpenSim's values to them); the model steps cleanly."""
+    r = run(build(tmp_path / f"{jtype}.osim", jtype, radii, rng), tmp_path)
+    rep = r.rep
+    assert rep.max_pos_error <= EXACT and rep.max_ang_error <= EXACT, rep.summary()
+    assert rep.com_max_error <= EXACT and abs(rep.mass_mujoco - rep.mass_opensim) <= EXACT
+    assert hinge_count(jtype, radii) == hinges
+    names = [mujoco.mj_id2name(r.mj, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(r.mj.njnt)]
+    assert len(names) == hinges + 1  # and the pin
+    coords = [f"e{i}" for i in range(3 if jtype == "EllipsoidJoint" else 4)]
+    for c in coords:
+        assert r.mj.jnt_type[jid(r.mj, c)] == mujoco.mjtJoint.mjJNT_HINGE
+    records = {j.name: j for j in r.conv.report.joints}
+    assert sorted(n for n, j in records.items() if j.coordinate) == sorted(coords + ["pin_coord_0"])
+    driven = [n for n in names if n.startswith("e_ellipsoid")]
+    assert len(driven) == hinges - len(coords) == r.mj.neq
+    assert all(records[n].relation == "linear" for n in driven)
+    # the report notes the chain and its measured error; driven hinges' armature is recorded
+    note = next(n for n in r.conv.report.notes if n.startswith("joint 'e'"))
+    assert f"chain of {hinges} hinges" in note and "exact" in note
+    approx = [a for a in r.conv.report.approximations if a.name == "e"]
+    assert len(approx) == (1 if driven else 0)
+    assert (hinges > 6) == bool(rep.extra_bodies)
+    _steps_cleanly(r.mj)
+
+
+def test_coordinate_joints_carry_values(tmp_path):
+    """Setting the coordinate joints to OpenSim's values (and resolving the equalities) puts b1
+    where OpenSim does, and qpos0 holds each coordinate's default value."""
+    path = build(tmp_path / "carry.osim", "ScapulothoracicJoint", (0.07, 0.15, 0.09), WIDE_RANGE)
+    r = run(path, tmp_path)
+    for i in range(4):
+        assert r.mj.qpos0[r.mj.jnt_qposadr[jid(r.mj, f"e{i}")]] == pytest.approx(0.1 * (i + 1), abs=1e-15)
+    assert r.rep.worst_pose is not None and r.rep.max_pos_error <= EXACT
+
+
+def test_locked_coordinate_folded(tmp_path):
+    """A locked coordinate's hinges are fixed at its default: no MuJoCo joint, still exact."""
+    r = run(build(tmp_path / "locked.osim", "EllipsoidJoint", (0.05, 0.08, 0.12), WIDE_RANGE, locked=1), tmp_path)
+    assert r.rep.max_pos_error <= EXACT and r.rep.max_ang_error <= EXACT, r.rep.summary()
+    assert mujoco.mj_name2id(r.mj, mujoco.mjtObj.mjOBJ_JOINT, "e1") == -1
+    assert not any("e1" == j.driven_by for j in r.conv.report.joints)
