@@ -18,11 +18,12 @@ is exact, every hinge a linear function (±1 or ±2 times) of one coordinate. Th
 and the dropped arm are chosen for the fewest hinges: 3 for a sphere, 4 when b = c, 6 when
 a = c or a = b, 7 otherwise. The first ±1 hinge of each coordinate is the coordinate's MuJoCo
 joint (its axis reversed for -1, so it carries the coordinate's value); the others follow it by
-linear joint equalities and get a small armature (the chain of a general ellipsoid has more
-hinges than the body has degrees of freedom). A ScapulothoracicJoint's winging is one more
-hinge, about its axis through its origin. Past MuJoCo's 6 degrees of freedom per body, the
-first hinges go on an intermediate body ``<child>_ellipsoid`` (1e-12 kg) between the parent
-and the child.
+linear joint equalities. A three-hinge turn (y, x, y through one point: every chain but a
+sphere's and b = c's) lines its two y hinges up when q1 = 0, where the mass matrix would be
+singular, so the driven hinges of such a chain get a small armature, recorded in the report. A
+ScapulothoracicJoint's winging is one more hinge, about its axis through its origin. Past
+MuJoCo's 6 degrees of freedom per body, the first hinges go on an intermediate body
+``<child>_ellipsoid`` (1e-12 kg) between the parent and the child.
 """
 
 from __future__ import annotations
@@ -175,7 +176,7 @@ def _hinge_inertia(builder, joint: Joint, suffix: Transform, axis: np.ndarray) -
 def add_surface_joint(builder, joint: Joint) -> None:
     """Add ``joint`` (an EllipsoidJoint or ScapulothoracicJoint) to ``builder``'s spec as its exact
     hinge chain (module docstring): the child body, an intermediate body where needed, the
-    hinges and their equalities; record the check against OpenSim and the driven hinges' armature."""
+    hinges and their equalities; record the check against OpenSim and any driven hinges' armature."""
     from o2m.convert.builder import COUPLINGS_BODY_INERTIA, COUPLINGS_BODY_MASS
 
     q_ref = {name: builder.ref[name] for name in builder.skel.coordinates}
@@ -186,6 +187,7 @@ def add_surface_joint(builder, joint: Joint) -> None:
     frame = builder.ground_frames[joint.parent]
     seen: dict[int, bool] = {}
     armature: list[tuple[str, float, float, str]] = []
+    lines_up = any(link.fixed is None and link.coordinate == 0 and abs(link.scale) == 2.0 for link in links)
     k = 0
     for n, part in enumerate(parts):
         x = chain_transform([Link(link.at(q0)) for link in part], q0)
@@ -218,6 +220,8 @@ def add_surface_joint(builder, joint: Joint) -> None:
             driven = TransformAxis(f"ellipsoid{k}", "rotation", axis, ax.coordinate, LinearFunction(link.scale),
                                    joint.element)
             builder._add_mj_joint(body, joint, driven, "hinge", axis, anchor, ref)
+            if not lines_up:
+                continue
             whole = suffix @ chain_transform(rest, q0)
             value = COMPLEMENT_ARMATURE * _hinge_inertia(builder, joint, whole, link.axis)
             jname = f"{joint.name}_{driven.name}"
@@ -257,7 +261,7 @@ def _record(builder, joint: Joint, links: list[Link], extra_bodies: int,
         added[coord] = added.get(coord, 0.0) + value * scale ** 2
     builder.result.approximations.append(Approximation(
         joint.type, joint.name, f"armature of the {len(armature)} driven hinges of its chain (keeps the mass matrix "
-        f"regular where hinges line up)", max(added.values()), "kg m^2",
+        f"regular where two hinges line up, at q1 = 0)", max(added.values()), "kg m^2",
         "armature " + ", ".join(f"{name} {value:.3g}" for name, value, _, _ in armature) + f" kg m^2 "
         f"({COMPLEMENT_ARMATURE:g} of the child's own inertia about each), adding at most "
         + ", ".join(f"{v:.3g} kg m^2 to '{c}'" for c, v in added.items())))

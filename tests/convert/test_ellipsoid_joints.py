@@ -18,6 +18,7 @@ import pytest
 
 from o2m.convert.converter import convert
 from o2m.convert.ellipsoid_joints import surface_steps
+from o2m.osim import load_document, read_skeleton
 from o2m.validate.kinematics import compare_kinematics
 from tests.convert.test_joint_types import BODIES, EXACT, OFFSETS, Result, _steps_cleanly, assert_inertia, jid
 from tests.helpers import convert_options
@@ -84,6 +85,7 @@ CASES = [
     ("EllipsoidJoint", (0.1, 0.1, 0.1), WIDE_RANGE, 3),  # a sphere: three hinges, nothing driven
     ("EllipsoidJoint", (0.15, 0.07, 0.07), WIDE_RANGE, 4),  # b = c
     ("EllipsoidJoint", (0.07, 0.15, 0.07), WIDE_RANGE, 6),  # a = c
+    ("EllipsoidJoint", (0.08, 0.08, 0.12), WIDE_RANGE, 6),  # a = b
     ("EllipsoidJoint", (0.05, 0.08, 0.12), WIDE_RANGE, 7),  # general: an intermediate body
     ("ScapulothoracicJoint", SETH_RADII, SETH_RANGE, 5),  # thorax x = z: b = c after the swap
     ("ScapulothoracicJoint", (0.07, 0.15, 0.09), WIDE_RANGE, 8),
@@ -112,8 +114,10 @@ def test_ellipsoid_joint_exact(jtype, radii, rng, hinges, tmp_path):
     # the report notes the chain and its measured error; driven hinges' armature is recorded
     note = next(n for n in r.conv.report.notes if n.startswith("joint 'e'"))
     assert f"chain of {hinges} hinges" in note and "exact" in note
+    # only a chain with a three-hinge turn (6 hinges and more) needs armature, recorded as an approximation
     approx = [a for a in r.conv.report.approximations if a.name == "e"]
-    assert len(approx) == (1 if driven else 0)
+    assert len(approx) == (1 if hinges >= 6 else 0)
+    assert sum(r.mj.dof_armature > 0) == (len(driven) if hinges >= 6 else 0)
     assert (hinges > 6) == bool(rep.extra_bodies)
     _steps_cleanly(r.mj)
 
@@ -134,3 +138,25 @@ def test_locked_coordinate_folded(tmp_path):
     assert r.rep.max_pos_error <= EXACT and r.rep.max_ang_error <= EXACT, r.rep.summary()
     assert mujoco.mj_name2id(r.mj, mujoco.mjtObj.mjOBJ_JOINT, "e1") == -1
     assert not any("e1" == j.driven_by for j in r.conv.report.joints)
+
+
+@pytest.mark.parametrize("jtype", ["EllipsoidJoint", "ScapulothoracicJoint"])
+def test_reader_follows_opensim(jtype, tmp_path):
+    """The skeleton's joint transform (o2m.osim.skeleton.EllipsoidSurface) is OpenSim's to 1e-12."""
+    path = build(tmp_path / f"{jtype}.osim", jtype, (0.05, 0.08, 0.12), WIDE_RANGE)
+    joint = next(j for j in read_skeleton(load_document(path)).joints if j.name == "e")
+    model = osim.Model(path)
+    state = model.initSystem()
+    coords = model.getCoordinateSet()
+    body = model.getBodySet().get("b1")
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        values = {coords.get(i).getName(): rng.uniform(*WIDE_RANGE) for i in range(coords.getSize())}
+        for name, v in values.items():
+            coords.get(name).setValue(state, v, False)
+        model.realizePosition(state)
+        x = body.getTransformInGround(state)
+        want_rot = np.array([[x.R().get(i, k) for k in range(3)] for i in range(3)])
+        got = joint.transform(values)
+        np.testing.assert_allclose(got.pos, x.p().to_numpy(), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.rot, want_rot, rtol=0, atol=1e-12)
