@@ -70,6 +70,8 @@ from o2m.convert.couplings import AxisFit, CouplingFit
 from o2m.convert.ellipsoid_joints import add_surface_joint
 from o2m.convert.inertials import (
     COMPLEMENT_ARMATURE,
+    COUPLINGS_BODY_INERTIA,
+    COUPLINGS_BODY_MASS,
     main_inertias,
     set_complement_armature,
     set_extra_armature,
@@ -90,11 +92,6 @@ from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_q
 #: force-velocity curves answer (docs/paper.md, the biceps over pro_sup).
 EQUALITY_SOLREF = (0.004, 1.0)
 EQUALITY_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-#: Mass (kg) and principal inertia (kg m²) of an intermediate body carrying a joint's
-#: translations: just above what MuJoCo accepts, so the model's mass and centre of mass stay
-#: OpenSim's. Its slides move the OpenSim body hanging from it, so their inertia is that body's.
-COUPLINGS_BODY_MASS = 1e-12
-COUPLINGS_BODY_INERTIA = 1e-14
 
 
 def _rest(fn, q: np.ndarray) -> np.ndarray:

@@ -34,7 +34,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from o2m.convert.coupling_plan import MAX_BODY_DOFS
-from o2m.convert.inertials import COMPLEMENT_ARMATURE, MIN_INERTIA, set_inertial
+from o2m.convert.inertials import (
+    COMPLEMENT_ARMATURE,
+    COUPLINGS_BODY_INERTIA,
+    COUPLINGS_BODY_MASS,
+    MIN_INERTIA,
+    set_inertial,
+)
 from o2m.convert.records import Approximation
 from o2m.osim.functions import LinearFunction
 from o2m.osim.skeleton import Joint, TransformAxis
@@ -177,8 +183,6 @@ def add_surface_joint(builder, joint: Joint) -> None:
     """Add ``joint`` (an EllipsoidJoint or ScapulothoracicJoint) to ``builder``'s spec as its exact
     hinge chain (module docstring): the child body, an intermediate body where needed, the
     hinges and their equalities; record the check against OpenSim and any driven hinges' armature."""
-    from o2m.convert.builder import COUPLINGS_BODY_INERTIA, COUPLINGS_BODY_MASS
-
     q_ref = {name: builder.ref[name] for name in builder.skel.coordinates}
     q0 = [ax.value(q_ref) for ax in joint.rotations]
     links = _fold_fixed(builder, joint, joint_chain(joint), q0)

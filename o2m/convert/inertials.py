@@ -18,6 +18,12 @@ from o2m.osim.skeleton import Joint
 #: Mass (kg) and principal inertia (kg m²) given to massless moving bodies, which MuJoCo rejects.
 MIN_MASS = 1e-8
 MIN_INERTIA = 1e-12
+#: Mass (kg) and principal inertia (kg m²) of an intermediate body carrying a joint's
+#: translations (or an ellipsoid joint's first hinges): just above what MuJoCo accepts, so the
+#: model's mass and centre of mass stay OpenSim's. Its joints move the OpenSim body hanging from
+#: it, so their inertia is that body's.
+COUPLINGS_BODY_MASS = 1e-12
+COUPLINGS_BODY_INERTIA = 1e-14
 #: A complement joint's armature, as a fraction of its coordinate joint's own inertia: enough to
 #: keep the mass matrix regular, small beside what the coordinate moves.
 COMPLEMENT_ARMATURE = 0.01
