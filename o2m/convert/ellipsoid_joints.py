@@ -170,13 +170,31 @@ def _segments(links: list[Link]) -> list[list[Link]]:
 
 
 def _hinge_inertia(builder, joint: Joint, suffix: Transform, axis: np.ndarray) -> float:
-    """The child body's own inertia (kg m²) about a hinge whose frame is ``suffix`` (the links
-    after it, at the reference pose) from the child body's."""
+    """The child body's own inertia (kg m²) about a hinge about ``axis`` (its own frame), whose
+    frame is ``suffix`` (the links after it, at the reference pose) away from the child body's."""
     body = builder.skel.bodies[joint.child]
     u = suffix.rot.T @ axis
     d = body.com - (-suffix.rot.T @ suffix.pos)
     inertia = body.inertia + body.mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
     return max(float(u @ inertia @ u), MIN_INERTIA)
+
+
+def _add_body(builder, joint: Joint, parent, x: Transform, n: int, last: bool):
+    """The MuJoCo body of part ``n`` of ``joint``'s chain at ``x`` in ``parent``: the child body,
+    or an intermediate body (:data:`~o2m.convert.inertials.COUPLINGS_BODY_MASS`)."""
+    x_mj = Transform(OSIM_TO_MJ) @ x if joint.parent == "ground" and n == 0 else x
+    name = joint.child if last else _intermediate_name(builder, joint, n)
+    body = parent.add_body(name=name, pos=x_mj.pos, quat=matrix_to_quat(x_mj.rot))
+    builder.exact[("body", name)] = {"pos": x_mj.pos, "quat": matrix_to_quat(x_mj.rot)}
+    if last:
+        set_inertial(builder, body, joint)
+        return body
+    body.explicitinertial = True
+    body.mass, body.ipos = COUPLINGS_BODY_MASS, np.zeros(3)
+    body.fullinertia = [COUPLINGS_BODY_INERTIA] * 3 + [0.0] * 3
+    builder.exact[("inertial", name)] = {"pos": np.zeros(3), "mass": COUPLINGS_BODY_MASS,
+                                         "fullinertia": np.array(body.fullinertia)}
+    return body
 
 
 def add_surface_joint(builder, joint: Joint) -> None:
@@ -187,54 +205,38 @@ def add_surface_joint(builder, joint: Joint) -> None:
     q0 = [ax.value(q_ref) for ax in joint.rotations]
     links = _fold_fixed(builder, joint, joint_chain(joint), q0)
     parts = _segments(links)
-    parent = builder.bodies[joint.parent]
-    frame = builder.ground_frames[joint.parent]
-    seen: dict[int, bool] = {}
+    parent, frame = builder.bodies[joint.parent], builder.ground_frames[joint.parent]
+    placed: set[int] = set()  # coordinates whose MuJoCo joint is made
     armature: list[tuple[str, float, float, str]] = []
     lines_up = any(link.fixed is None and link.coordinate == 0 and abs(link.scale) == 2.0 for link in links)
-    k = 0
+    driven = 0
     for n, part in enumerate(parts):
         x = chain_transform([Link(link.at(q0)) for link in part], q0)
-        x_mj = Transform(OSIM_TO_MJ) @ x if joint.parent == "ground" and n == 0 else x
-        last = n == len(parts) - 1
-        name = joint.child if last else _intermediate_name(builder, joint, n)
-        body = parent.add_body(name=name, pos=x_mj.pos, quat=matrix_to_quat(x_mj.rot))
-        builder.exact[("body", name)] = {"pos": x_mj.pos, "quat": matrix_to_quat(x_mj.rot)}
-        if last:
-            set_inertial(builder, body, joint)
-        else:
-            body.explicitinertial = True
-            body.mass, body.ipos = COUPLINGS_BODY_MASS, np.zeros(3)
-            body.fullinertia = [COUPLINGS_BODY_INERTIA] * 3 + [0.0] * 3
-            builder.exact[("inertial", name)] = {"pos": np.zeros(3), "mass": COUPLINGS_BODY_MASS,
-                                                 "fullinertia": np.array(body.fullinertia)}
-        rest = [Link(link.at(q0)) for part_after in parts[n + 1:] for link in part_after]
+        body = _add_body(builder, joint, parent, x, n, n == len(parts) - 1)
+        rest = [Link(link.at(q0)) for later in parts[n + 1:] for link in later]
         for i, link in enumerate(part):
             if link.fixed is not None:
                 continue
             suffix = chain_transform([Link(lk.at(q0)) for lk in part[i + 1:]], q0)
             axis, anchor = suffix.rot.T @ link.axis, -suffix.rot.T @ suffix.pos
             ax = joint.rotations[link.coordinate]
-            ref = link.scale * q0[link.coordinate]
-            if abs(link.scale) == 1.0 and not seen.get(link.coordinate):
-                seen[link.coordinate] = True
+            if abs(link.scale) == 1.0 and link.coordinate not in placed:
+                placed.add(link.coordinate)
                 builder._add_mj_joint(body, joint, ax, "hinge", link.scale * axis, anchor, q0[link.coordinate])
                 continue
-            k += 1
-            driven = TransformAxis(f"ellipsoid{k}", "rotation", axis, ax.coordinate, LinearFunction(link.scale),
-                                   joint.element)
-            builder._add_mj_joint(body, joint, driven, "hinge", axis, anchor, ref)
-            if not lines_up:
-                continue
-            whole = suffix @ chain_transform(rest, q0)
-            value = COMPLEMENT_ARMATURE * _hinge_inertia(builder, joint, whole, link.axis)
-            jname = f"{joint.name}_{driven.name}"
-            builder.spec.joint(jname).armature = value
-            armature.append((jname, value, link.scale, ax.coordinate))
+            driven += 1
+            hinge = TransformAxis(f"ellipsoid{driven}", "rotation", axis, ax.coordinate, LinearFunction(link.scale),
+                                  joint.element)
+            builder._add_mj_joint(body, joint, hinge, "hinge", axis, anchor, link.scale * q0[link.coordinate])
+            if lines_up:
+                value = COMPLEMENT_ARMATURE * _hinge_inertia(builder, joint, suffix @ chain_transform(rest, q0),
+                                                             link.axis)
+                builder.spec.joint(f"{joint.name}_{hinge.name}").armature = value
+                armature.append((f"{joint.name}_{hinge.name}", value, link.scale, ax.coordinate))
         parent, frame = body, frame @ x
     builder.bodies[joint.child] = parent
     builder.ground_frames[joint.child] = frame
-    _record(builder, joint, links, len(parts) - 1, armature)
+    _record(builder, joint, links, q0, len(parts) - 1, driven, armature)
 
 
 def _intermediate_name(builder, joint: Joint, n: int) -> str:
@@ -245,19 +247,22 @@ def _intermediate_name(builder, joint: Joint, n: int) -> str:
     return name
 
 
-def _record(builder, joint: Joint, links: list[Link], extra_bodies: int,
+def _record(builder, joint: Joint, links: list[Link], q0: list[float], extra_bodies: int, driven: int,
             armature: list[tuple[str, float, float, str]]) -> None:
-    """Note the chain and its measured error; record the driven hinges' armature."""
-    ranges = [builder.fit_range(ax.coordinate, "rotation") for ax in joint.rotations]
+    """Note the chain and its error against OpenSim's formula over the coordinates' ranges
+    (locked ones at their default); record the driven hinges' armature, if any."""
+    ranges = [(v, v) if builder.is_fixed(ax) else builder.fit_range(ax.coordinate, "rotation")
+              for ax, v in zip(joint.rotations, q0, strict=True)]
     pos, ang = chain_error(joint, links, ranges)
     hinges = sum(link.fixed is None for link in links)
     radii = " ".join(f"{r:g}" for r in joint.surface.radii)
-    where = f", the first on {extra_bodies} intermediate body ({COUPLINGS_NOTE})" if extra_bodies else ""
+    where = (f", the first on {extra_bodies} intermediate body ({COUPLINGS_BODY_MASS:g} kg, no geometry)"
+             if extra_bodies else "")
     builder.result.notes.append(
         f"joint '{joint.name}' ({joint.type}, ellipsoid radii {radii} m in its mobilizer frame) is a chain of "
-        f"{hinges} hinges, {len(armature)} of them driven by linear joint equalities{where}: exact; checked "
-        f"against OpenSim's formula on {CHECK_SAMPLES}^{len(joint.rotations)} poses over the coordinates' ranges: "
-        f"worst {pos * 1e3:.2g} mm, {np.degrees(ang):.2g} deg")
+        f"{hinges} hinges, {driven} of them driven by linear joint equalities{where}: exact; checked against "
+        f"OpenSim's formula on {CHECK_SAMPLES}^{len(joint.rotations)} poses over the coordinates' ranges: worst "
+        f"{pos * 1e3:.2g} mm, {np.degrees(ang):.2g} deg")
     if not armature:
         return
     added: dict[str, float] = {}
@@ -269,7 +274,3 @@ def _record(builder, joint: Joint, links: list[Link], extra_bodies: int,
         "armature " + ", ".join(f"{name} {value:.3g}" for name, value, _, _ in armature) + f" kg m^2 "
         f"({COMPLEMENT_ARMATURE:g} of the child's own inertia about each), adding at most "
         + ", ".join(f"{v:.3g} kg m^2 to '{c}'" for c, v in added.items())))
-
-
-#: How the report names an intermediate body of a chain.
-COUPLINGS_NOTE = "1e-12 kg, no geometry"

@@ -113,7 +113,8 @@ def test_ellipsoid_joint_exact(jtype, radii, rng, hinges, tmp_path):
     assert all(records[n].relation == "linear" for n in driven)
     # the report notes the chain and its measured error; driven hinges' armature is recorded
     note = next(n for n in r.conv.report.notes if n.startswith("joint 'e'"))
-    assert f"chain of {hinges} hinges" in note and "exact" in note
+    assert f"chain of {hinges} hinges, {len(driven)} of them driven" in note and "exact" in note
+    assert float(note.split("worst ")[1].split(" mm")[0]) <= EXACT * 1e3
     # only a chain with a three-hinge turn (6 hinges and more) needs armature, recorded as an approximation
     approx = [a for a in r.conv.report.approximations if a.name == "e"]
     assert len(approx) == (1 if hinges >= 6 else 0)
@@ -138,6 +139,8 @@ def test_locked_coordinate_folded(tmp_path):
     assert r.rep.max_pos_error <= EXACT and r.rep.max_ang_error <= EXACT, r.rep.summary()
     assert mujoco.mj_name2id(r.mj, mujoco.mjtObj.mjOBJ_JOINT, "e1") == -1
     assert not any("e1" == j.driven_by for j in r.conv.report.joints)
+    note = next(n for n in r.conv.report.notes if n.startswith("joint 'e'"))
+    assert float(note.split("worst ")[1].split(" mm")[0]) <= EXACT * 1e3, note
 
 
 @pytest.mark.parametrize("jtype", ["EllipsoidJoint", "ScapulothoracicJoint"])
