@@ -21,7 +21,7 @@ from o2m.convert.ellipsoid_joints import surface_steps
 from o2m.osim import load_document, read_skeleton
 from o2m.validate.kinematics import compare_kinematics
 from tests.convert.test_joint_types import BODIES, EXACT, OFFSETS, Result, _steps_cleanly, assert_inertia, jid
-from tests.helpers import convert_options
+from tests.helpers import add_coupler, convert_options
 
 osim.Logger.setLevelString("error")
 
@@ -34,8 +34,9 @@ WIDE_RANGE = (-1.2, 1.0)
 
 
 def build(path: Path, jtype: str, radii, rng=SETH_RANGE, *, locked: int | None = None,
-          winging=((0.01, -0.02), 0.4)) -> str:
-    """Print ground -``jtype``-> b1 -Pin-> b2 to ``path``; coordinates ``e0``.. in ``rng``."""
+          winging=((0.01, -0.02), 0.4), coupled: bool = False) -> str:
+    """Print ground -``jtype``-> b1 -Pin-> b2 to ``path``; coordinates ``e0``.. in ``rng``;
+    ``coupled``: a CoordinateCouplerConstraint makes e1 = 0.5 e0 + 0.05."""
     m = osim.Model()
     m.setName(path.stem)
     bodies = {}
@@ -60,6 +61,9 @@ def build(path: Path, jtype: str, radii, rng=SETH_RANGE, *, locked: int | None =
         c.setDefaultValue(0.1 * (i + 1))
         if i == locked:
             c.setDefaultLocked(True)
+    if coupled:
+        joint.upd_coordinates(1).setDefaultValue(0.5 * 0.1 + 0.05)
+        add_coupler(m, "couple", "e0", "e1", osim.LinearFunction(0.5, 0.05))
     m.finalizeConnections()
     m.printToXML(str(path))
     return str(path)
@@ -163,3 +167,15 @@ def test_reader_follows_opensim(jtype, tmp_path):
         got = joint.transform(values)
         np.testing.assert_allclose(got.pos, x.p().to_numpy(), rtol=0, atol=1e-12)
         np.testing.assert_allclose(got.rot, want_rot, rtol=0, atol=1e-12)
+
+
+def test_coupled_coordinate(tmp_path):
+    """A coordinate coupled to another (linearly): its hinges, the coordinate's own and the
+    driven ones, follow the independent coordinate exactly."""
+    path = build(tmp_path / "coupled.osim", "ScapulothoracicJoint", (0.07, 0.15, 0.09), WIDE_RANGE, coupled=True)
+    r = run(path, tmp_path)
+    assert r.rep.dependent_coordinates == ["e1"]
+    assert r.rep.max_pos_error <= EXACT and r.rep.max_ang_error <= EXACT, r.rep.summary()
+    records = {j.name: j for j in r.conv.report.joints}
+    assert records["e1"].coordinate == "e1" and records["e1"].driven_by == "e0"
+    assert all(j.driven_by == "e0" for n, j in records.items() if n.startswith("e_ellipsoid"))
