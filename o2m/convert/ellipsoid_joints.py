@@ -35,7 +35,6 @@ import numpy as np
 
 from o2m.convert.coupling_plan import MAX_BODY_DOFS
 from o2m.convert.inertials import (
-    COMPLEMENT_ARMATURE,
     COUPLINGS_BODY_INERTIA,
     COUPLINGS_BODY_MASS,
     MIN_INERTIA,
@@ -48,6 +47,10 @@ from o2m.transforms import OSIM_TO_MJ, Transform, axis_angle_matrix, matrix_to_q
 
 #: Body-fixed x, y, z unit axes.
 _AXES = np.eye(3)
+#: A driven hinge's armature where two hinges of its chain can line up, as a fraction of the
+#: child body's own inertia about it: small, as the test models' dynamics are sensitive to it
+#: (docs/conversion.md); a tenth of it let a chain's equalities diverge.
+CHAIN_ARMATURE = 1e-3
 #: Coordinate-range samples per coordinate on which the chain is checked against OpenSim's formula.
 CHECK_SAMPLES = 7
 
@@ -229,7 +232,7 @@ def add_surface_joint(builder, joint: Joint) -> None:
                                   joint.element)
             builder._add_mj_joint(body, joint, hinge, "hinge", axis, anchor, link.scale * q0[link.coordinate])
             if lines_up:
-                value = COMPLEMENT_ARMATURE * _hinge_inertia(builder, joint, suffix @ chain_transform(rest, q0),
+                value = CHAIN_ARMATURE * _hinge_inertia(builder, joint, suffix @ chain_transform(rest, q0),
                                                              link.axis)
                 builder.spec.joint(f"{joint.name}_{hinge.name}").armature = value
                 armature.append((f"{joint.name}_{hinge.name}", value, link.scale, ax.coordinate))
@@ -272,5 +275,5 @@ def _record(builder, joint: Joint, links: list[Link], q0: list[float], extra_bod
         joint.type, joint.name, f"armature of the {len(armature)} driven hinges of its chain (keeps the mass matrix "
         f"regular where two hinges line up, at q1 = 0)", max(added.values()), "kg m^2",
         "armature " + ", ".join(f"{name} {value:.3g}" for name, value, _, _ in armature) + f" kg m^2 "
-        f"({COMPLEMENT_ARMATURE:g} of the child's own inertia about each), adding at most "
+        f"({CHAIN_ARMATURE:g} of the child's own inertia about each), adding at most "
         + ", ".join(f"{v:.3g} kg m^2 to '{c}'" for c, v in added.items())))
