@@ -23,6 +23,8 @@ How an OpenSim joint becomes MuJoCo joints (see :mod:`o2m.osim.skeleton` for the
   parent frame's axes come first in a CustomJoint, so the two compose as one joint. The report's
   notes name each such body.
 * CoordinateCouplerConstraints become joint equalities the same way.
+* EllipsoidJoint and ScapulothoracicJoint become exact chains of hinges driven by linear joint
+  equalities (:mod:`o2m.convert.ellipsoid_joints`).
 * A body that only translates relative to an ancestor as one coordinate moves (its chain's
   rotations cancel) hangs from that ancestor by slides of the coordinate
   (:mod:`o2m.convert.shortcuts`); the bodies in between keep their joints.

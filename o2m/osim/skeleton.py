@@ -150,8 +150,8 @@ class EllipsoidSurface:
     coordinates), the mobilizer's M frame sits in its F frame at
     ``X_FM = (R, diag(radii) R e_z)``: on the ellipsoid of semi-axes ``radii`` (m, along F's x,
     y, z) centred on F's origin. A ScapulothoracicJoint turns F by +90 deg about z in its parent
-    frame (the thorax's x and y radii swap) and M back by -90 deg, then winges: a rotation by
-    its fourth coordinate about ``winging_axis`` through ``winging_point`` (that frame's).
+    frame (the thorax's x and y radii swap) and M back by -90 deg, then turns by its fourth
+    coordinate (winging) about ``winging_axis`` through ``winging_point``, in that last frame.
     """
 
     radii: np.ndarray  # (3,) m
@@ -449,11 +449,10 @@ class SkeletonReader:
         tag = "radii_x_y_z" if el.tag == "EllipsoidJoint" else "thoracic_ellipsoid_radii_x_y_z"
         if el.find(tag) is None:  # OpenSim's default is NaN
             raise self.doc.error(el, f"lacks <{tag}>")
+        radii = _floats(el.find(tag), 3, self.doc, tag)
         if el.tag == "EllipsoidJoint":
-            radii = _floats(el.find("radii_x_y_z"), 3, self.doc, "radii_x_y_z")
             surface = EllipsoidSurface(radii, Transform(), Transform())
         else:
-            radii = _floats(el.find("thoracic_ellipsoid_radii_x_y_z"), 3, self.doc, "thoracic_ellipsoid_radii_x_y_z")
             origin = el.find("scapula_winging_axis_origin")
             direction = el.find("scapula_winging_axis_direction")
             ox, oy = _floats(origin, 2, self.doc, "scapula_winging_axis_origin") if origin is not None else (0.0, 0.0)
