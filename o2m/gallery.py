@@ -48,7 +48,8 @@ try:
                    k3_max_mm=m.ma_max * 1e3, muscles=len(m.muscles), spikes_left_out=len(m.opensim_spikes),
                    k3_median_ok=m.ma_median * 1e3 <= MA_MEDIAN_MM)
         misses = target_misses(fetched.osim, conv.xml, m)
-        row["misses"] = [{"text": x.describe(), "at_floor": x.at_floor} for x in misses]
+        row["misses"] = [{"text": x.describe(), "at_floor": x.at_floor, "value": x.value, "target": x.target,
+                          "floor": x.floor} for x in misses]
 except Exception as exc:  # a model without paths, or a comparison that cannot run: say so
     row["k2_error"] = f"{type(exc).__name__}: {exc}"[:300]
 print("ROW " + json.dumps(row, default=float))

@@ -34,7 +34,9 @@ class TargetMiss:
     largest step of OpenSim's length along any coordinate (``floor_coordinate``); for a moment
     arm, the least RMS from ``computeMomentArm`` of any tendon within the length target (or, where
     a length step leaves none, within that step's floor) along ``coordinate``. None where none
-    was found. ``at_floor``: the floor is beyond the target, so the target cannot be met.
+    was found. ``target_impossible``: the floor is beyond the target, so no tendon meets it;
+    ``at_floor``: moreover the value is within the target of that floor (the target applies on
+    top of what OpenSim forces), so the miss is OpenSim's, not o2m's.
     """
 
     path: str
@@ -45,8 +47,12 @@ class TargetMiss:
     floor_coordinate: str | None = None
 
     @property
-    def at_floor(self) -> bool:
+    def target_impossible(self) -> bool:
         return self.floor is not None and self.floor > self.target
+
+    @property
+    def at_floor(self) -> bool:
+        return self.target_impossible and self.value - self.floor <= self.target
 
     def describe(self) -> str:
         """One line, e.g. ``FPL length 4.32 % > 1 % (OpenSim step floor 2.10 % along flexion)``."""
@@ -59,7 +65,8 @@ class TargetMiss:
                     f"> {self.target * 1e3:g} mm")
             floor = (f"any tendon at least {self.floor * 1e3:.3g} mm" if self.floor is not None
                      else "no floor measured")
-        verdict = "OpenSim's floor" if self.at_floor else "o2m's"
+        verdict = ("OpenSim's floor" if self.at_floor else
+                   "o2m's, above OpenSim's floor" if self.target_impossible else "o2m's")
         return f"{what} ({floor}: {verdict})"
 
 

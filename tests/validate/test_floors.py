@@ -10,11 +10,16 @@ from o2m.validate.floors import TargetMiss, target_misses
 from o2m.validate.muscles import LEN_PCT, compare_muscles
 
 
-def test_a_miss_is_at_a_floor_only_when_the_floor_is_beyond_the_target():
-    assert TargetMiss("A", None, 3.0, LEN_PCT, 1.5, "q").at_floor
-    assert not TargetMiss("A", None, 3.0, LEN_PCT, 0.5, "q").at_floor
+def test_a_miss_is_at_a_floor_only_when_the_floor_is_beyond_the_target_and_the_value_near_it():
+    assert TargetMiss("A", None, 2.4, LEN_PCT, 1.5, "q").at_floor
+    above = TargetMiss("A", None, 3.0, LEN_PCT, 1.5, "q")  # 1.5 % beyond the floor: o2m's
+    assert above.target_impossible and not above.at_floor
+    assert "above OpenSim's floor" in above.describe()
+    assert not TargetMiss("A", None, 3.0, LEN_PCT, 0.5, "q").target_impossible
     assert not TargetMiss("A", "q", 4e-3, 2e-3, None).at_floor
-    assert "OpenSim's floor" in TargetMiss("A", None, 3.0, LEN_PCT, 1.5, "q").describe()
+    assert TargetMiss("A", "q", 9e-3, 2e-3, 8e-3).at_floor
+    assert not TargetMiss("A", "q", 11e-3, 2e-3, 8e-3).at_floor
+    assert "OpenSim's floor" in TargetMiss("A", None, 2.4, LEN_PCT, 1.5, "q").describe()
     assert "o2m's" in TargetMiss("A", "q", 4e-3, 2e-3, 1e-4).describe()
 
 
