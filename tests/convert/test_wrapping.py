@@ -595,3 +595,67 @@ def test_a_tendon_without_a_split_is_fitted_whole_and_straight():
     whole, straight = whole_and_straight(geoms)
     assert (whole.label, set(whole.dropped)) == ("A+B", set())
     assert (straight.label, set(straight.dropped)) == (NO_WRAP, {"ga", "sa", "gb"})
+
+
+def _path_turning_round_a_wrap(path, kind: str) -> None:
+    """A path parallel to x, 0.3 radii off a wrap of radius 0.02 m on ground (quadrant -y), on a
+    body turning about x (coordinate "q" in [0, pi]): the short way round goes toward +y at q = 0
+    (the quadrant's wrong side: the long way), toward +z at pi/2 and -y at pi."""
+    r = 0.02
+    m = osim.Model()
+    m.setName(f"turning_{kind}")
+    arm = osim.Body("arm", 1.0, osim.Vec3(0), osim.Inertia(0.01, 0.01, 0.01))
+    m.addBody(arm)
+    turn = osim.Vec3(0, math.pi / 2, 0)  # the pin's z axis along ground x
+    j = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), turn, arm, osim.Vec3(0), turn)
+    c = j.updCoordinate()
+    c.setName("q")
+    c.setRangeMin(0.0)
+    c.setRangeMax(math.pi)
+    m.addJoint(j)
+    pa = osim.PathActuator()
+    pa.setName("m")
+    pa.setOptimalForce(100)
+    pa.addNewPathPoint("P1", arm, osim.Vec3(-3 * r, 0.3 * r, 0))
+    pa.addNewPathPoint("P2", arm, osim.Vec3(3 * r, 0.3 * r, 0))
+    m.addForce(pa)
+    if kind == "sphere":
+        w = osim.WrapSphere()
+        w.set_radius(r)
+    else:
+        w = osim.WrapEllipsoid()
+        w.set_dimensions(osim.Vec3(r, r, r))
+    w.setName("obstacle")
+    w.set_quadrant("-y")
+    m.updGround().addWrapObject(w)
+    pa.updGeometryPath().addPathWrap(w)
+    m.finalizeConnections()
+    m.initSystem()
+    m.printToXML(str(path))
+
+
+@pytest.mark.parametrize("kind", ["sphere", "ellipsoid"])
+def test_quadrant_rule_of_a_sphere_is_mujocos_side_site_and_an_ellipsoids_is_not(tmp_path, kind):
+    """OpenSim's WrapSphere with a quadrant goes the long way exactly when MuJoCo's side site on the
+    quadrant's axis does, so the converted tendon is exact. Its WrapEllipsoid (here with equal
+    radii) instead mirrors the wrap's closest point across the quadrant's plane and wraps over
+    a tilted plane: its length moves continuously from the short way's to the long way's, which
+    a MuJoCo sphere wrap, short or long round a fixed side site, cannot follow: a floor, measured."""
+    osim_path = tmp_path / f"{kind}.osim"
+    _path_turning_round_a_wrap(osim_path, kind)
+    conv = convert(osim_path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    qs = np.radians(np.arange(0.5, 180.0, 1.0))
+    l_os, l_mj = pendulum_lengths(osim_path, conv.xml, qs)
+    short, long_way = l_os[-1], l_os[0]  # at pi the short way is on the quadrant's side
+    assert long_way - short > 5e-3
+    if kind == "sphere":
+        assert np.max(np.abs(l_mj - l_os)) < 1e-9
+        return
+    assert np.max(np.abs(np.diff(l_os))) < 1e-3  # continuous: no switch
+    between = (l_os > short + 1e-3) & (l_os < long_way - 1e-3)
+    assert between.sum() > 30, between.sum()
+    floor = np.max(np.minimum(np.abs(l_os - short), np.abs(l_os - long_way)))
+    assert floor / short > 0.02, floor / short  # no sphere wrap is within 2 % at every angle
+    # the converted tendon is one way round or the other (OpenSim's ellipsoid arc, a polyline, is
+    # about 1 micrometre shorter than the exact arc)
+    assert np.all(np.isclose(l_mj, short, atol=1e-5) | np.isclose(l_mj, long_way, atol=1e-5))
