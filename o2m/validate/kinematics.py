@@ -151,7 +151,8 @@ class KinematicsReport:
         return abs(self.mass_mujoco - self.mass_opensim)
 
     def ok(self, pos_tol: float = POS_TOL, ang_tol: float = ANG_TOL, mass_rtol: float = MASS_RTOL) -> bool:
-        """True when every compared body and the whole-model COM are within ``pos_tol`` (m),
+        """True when every compared body and the whole-model COM (where OpenSim's model has mass)
+        are within ``pos_tol`` (m),
         every orientation within ``ang_tol`` (rad), the total mass within ``mass_rtol``
         (relative), no OpenSim body is missing and at least one pose was compared."""
         return (
@@ -387,7 +388,8 @@ def compare_kinematics(
         dang = rotation_angle(np.swapaxes(rot_mj, 1, 2) @ rot_os)
         com_os = OSIM_TO_MJ @ os_model.calcMassCenterPosition(state).to_numpy()
         com_mj = (weight[:, None] * mj_data.xipos).sum(axis=0) / max(mass_mj, 1e-300)  # as the mass
-        com_err = float(np.linalg.norm(com_mj - com_os))
+        # a massless model (WristModel) has no centre of mass to compare
+        com_err = float(np.linalg.norm(com_mj - com_os)) if mass_os > 0 else 0.0
 
         sq_sum += dpos**2
         np.maximum(max_pos, dpos, out=max_pos)

@@ -198,6 +198,7 @@ def test_wrist_model_converts_and_matches_opensim(tmp_path):
     assert any(w.startswith("Body ") and "no mass" in w for w in conv.report.warnings)  # all massless
     rep = compare_kinematics(wrist, conv.xml, n_poses=10)
     assert not rep.missing_bodies and rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9
+    assert rep.mass_opensim == 0.0 and rep.ok()  # a massless model has no centre of mass to miss
 
 
 # --------------------------------------------------------------------------------------------
