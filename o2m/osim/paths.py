@@ -206,6 +206,10 @@ def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
             check_muscle_numbers(reader, el)
         gp = el.find("GeometryPath")
         if gp is None:
+            other = next((c.tag for c in el if isinstance(c.tag, str) and c.tag.endswith("Path")), None)
+            if other is not None:  # FunctionBasedPath, Scholz2015GeometryPath: no points to place
+                raise doc.error(el, f"has a <{other}>, a path o2m cannot convert (only GeometryPath, "
+                                    "a path of points and wrap objects)")
             raise doc.error(el, "has no <GeometryPath>")
         points = [read_point(reader, p, coords) for p in gp.iterfind("PathPointSet/objects/*")
                   if isinstance(p.tag, str)]

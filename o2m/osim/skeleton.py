@@ -55,6 +55,27 @@ def opensim_typenames() -> frozenset[str]:
     return frozenset(names.get(i) for i in range(names.getSize()))
 
 
+#: The model set each OpenSim base class belongs to, in the order they are tried (a component of
+#: the model's ``<components>`` list is read with the objects of its base class's set).
+_SET_OF_BASE = (("Body", "BodySet"), ("Joint", "JointSet"), ("Constraint", "ConstraintSet"),
+                ("Force", "ForceSet"), ("Marker", "MarkerSet"), ("ContactGeometry", "ContactGeometrySet"),
+                ("Controller", "ControllerSet"), ("Probe", "ProbeSet"))
+
+
+@cache
+def set_of_type(tag: str) -> str:
+    """The model set ("BodySet", "ForceSet", ...) that holds objects of OpenSim type ``tag``;
+    "ComponentSet" for any other component and for a type OpenSim 4.6 does not know."""
+    if tag not in opensim_typenames():
+        return "ComponentSet"
+    opensim = runtime.opensim()
+    obj = opensim.OpenSimObject.newInstanceOfType(tag)
+    for base, set_tag in _SET_OF_BASE:
+        if obj is not None and getattr(opensim, base).safeDownCast(obj) is not None:
+            return set_tag
+    return "ComponentSet"
+
+
 def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str) -> np.ndarray:
     if el is None or not (el.text or "").strip():
         raise doc.error(el.getparent() if el is not None else doc.model, f"lacks <{what}>")
@@ -185,6 +206,29 @@ class PointOnLine:
     element: etree._Element
 
 
+#: Constraints between two bodies that become MuJoCo equalities (:mod:`o2m.convert.constraints`).
+BODY_CONSTRAINTS = frozenset({"WeldConstraint", "PointConstraint", "ConstantDistanceConstraint"})
+
+
+@dataclass
+class BodyConstraint:
+    """WeldConstraint (frame 1 on ``body1`` coincides with frame 2 on ``body2``), PointConstraint
+    (their origins coincide) or ConstantDistanceConstraint (their origins stay ``distance`` m apart).
+
+    The frames are in the bodies' own frames (OpenSim's, Y-up for ground); for the two point
+    constraints only their positions count.
+    """
+
+    name: str
+    type: str
+    body1: str
+    frame1: Transform
+    body2: str
+    frame2: Transform
+    distance: float | None
+    element: etree._Element
+
+
 @dataclass
 class Marker:
     name: str
@@ -217,6 +261,7 @@ class Skeleton:
     skipped: list[Skipped] = field(default_factory=list)
     document: OsimDocument | None = None
     point_on_lines: list[PointOnLine] = field(default_factory=list)
+    body_constraints: list[BodyConstraint] = field(default_factory=list)
 
 
 class SkeletonReader:
@@ -276,15 +321,38 @@ class SkeletonReader:
         return PointOnLine(el.get("name", ""), line_body, x_line.apply(line_point), x_line.rot @ (direction / norm),
                            follower, x_follow.apply(follower_point), el)
 
+    def body_constraint(self, el: etree._Element) -> BodyConstraint:
+        """A :data:`BODY_CONSTRAINTS` element, its frames or points moved into its sockets' bodies."""
+        if el.tag == "WeldConstraint":
+            (b1, x1, _), (b2, x2, _) = (self.socket_frame(el, f"socket_frame{i}") for i in (1, 2))
+            return BodyConstraint(el.get("name", ""), el.tag, b1, x1, b2, x2, None, el)
+        ends = []
+        for i in (1, 2):
+            body, x, _ = self.socket_frame(el, f"socket_body_{i}")
+            loc = el.find(f"location_body_{i}")
+            point = _floats(loc, 3, self.doc, f"location_body_{i}") if loc is not None else np.zeros(3)
+            ends.append((body, Transform(pos=x.apply(point))))
+        distance = None
+        if el.tag == "ConstantDistanceConstraint":
+            d = el.find("constant_distance")
+            distance = float(_floats(d, 1, self.doc, "constant_distance")[0]) if d is not None else 1.0
+            if distance < 0:
+                raise self.doc.error(el, f"has a negative <constant_distance> {distance:g}")
+        return BodyConstraint(el.get("name", ""), el.tag, *ends[0], *ends[1], distance, el)
+
     # -- elements ----------------------------------------------------------------------
     def set_objects(self, set_tag: str) -> list[etree._Element]:
-        """The objects of the model's ``set_tag`` sets; one sharing its path with an earlier one (two
-        muscles of one name, say) raises an error naming both (:meth:`OsimDocument.check_unique`)."""
+        """The objects of the model's ``set_tag`` sets, then those of its ``<components>`` list that
+        belong to that set (:func:`set_of_type`: OpenSim 4.x may keep bodies, joints and forces
+        there); one sharing its path with an earlier one (two muscles of one name, say) raises an
+        error naming both (:meth:`OsimDocument.check_unique`)."""
         objs: list[etree._Element] = []
         for s in self.model.findall(set_tag):
             holder = s.find("objects")
             if holder is not None:
                 objs.extend(c for c in holder if isinstance(c.tag, str))
+        for holder in self.model.findall("components"):
+            objs.extend(c for c in holder if isinstance(c.tag, str) and set_of_type(c.tag) == set_tag)
         for el in objs:
             self.doc.check_unique(el)
         return objs
@@ -412,6 +480,7 @@ class SkeletonReader:
         joints = [self.joint(el, coords) for el in self.set_objects("JointSet")]
         couplers: list[Coupler] = []
         point_on_lines: list[PointOnLine] = []
+        body_constraints: list[BodyConstraint] = []
         for el in self.set_objects("ConstraintSet"):
             self.check_known(el)
             enforced = _bool(el.find("isEnforced"), True) and not _bool(el.find("isDisabled"), False)
@@ -422,8 +491,11 @@ class SkeletonReader:
                 if el.tag == "PointOnLineConstraint":
                     point_on_lines.append(self.point_on_line(el))
                     continue
-                raise doc.error(el, "is a constraint o2m cannot convert (only CoordinateCouplerConstraint and "
-                                "PointOnLineConstraint)")
+                if el.tag in BODY_CONSTRAINTS:
+                    body_constraints.append(self.body_constraint(el))
+                    continue
+                raise doc.error(el, "is a constraint o2m cannot convert (only CoordinateCouplerConstraint, "
+                                f"PointOnLineConstraint, {', '.join(sorted(BODY_CONSTRAINTS))})")
             if not enforced:
                 skipped.append(Skipped(el.tag, el.get("name", ""), "constraint is not enforced"))
                 continue
@@ -465,7 +537,7 @@ class SkeletonReader:
         grav = self.model.find("gravity")
         gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
         return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,
-                        markers, geometry, skipped, doc, point_on_lines)
+                        markers, geometry, skipped, doc, point_on_lines, body_constraints)
 
 
 def _skip_reason(set_tag: str) -> str:
