@@ -115,6 +115,7 @@ class Ligament:
     curve: Function
     fit: SideFit | None = None
     length_range: tuple[float, float] = (0.0, 0.0)
+    element: str = "Ligament"  # the OpenSim type, for the report
 
     def tension(self, length: np.ndarray) -> np.ndarray:
         """OpenSim's tension (N) at path ``length`` (m): 0 when not longer than the resting length."""

@@ -11,15 +11,10 @@ import numpy as np
 from lxml import etree
 
 from o2m.osim.functions import Function, parse_function
-from o2m.osim.skeleton import SkeletonReader, _floats
+from o2m.osim.skeleton import MUSCLE_TYPES, PATH_TYPES, SkeletonReader, _floats
 from o2m.transforms import Transform, body_fixed_xyz
 
 #: Path actuators and forces whose GeometryPath o2m turns into a MuJoCo spatial tendon.
-MUSCLE_TYPES = frozenset({
-    "Thelen2003Muscle", "Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle",
-    "Schutte1993Muscle_Deprecated", "DeGrooteFregly2016Muscle", "RigidTendonMuscle",
-})
-PATH_TYPES = MUSCLE_TYPES | {"PathActuator", "Ligament", "PathSpring"}
 WRAP_TYPES = frozenset({"WrapSphere", "WrapCylinder", "WrapEllipsoid", "WrapTorus"})
 #: A muscle's numbers o2m reads, and the interval each must lie in when given: (low, high, whether
 #: low itself is allowed). A negative max isometric force would become MuJoCo's "compute the force

@@ -55,6 +55,15 @@ def opensim_typenames() -> frozenset[str]:
     return frozenset(names.get(i) for i in range(names.getSize()))
 
 
+#: The muscles and other path forces o2m converts (their paths are read by :mod:`o2m.osim.paths`).
+MUSCLE_TYPES = frozenset({
+    "Thelen2003Muscle", "Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle",
+    "Schutte1993Muscle_Deprecated", "DeGrooteFregly2016Muscle", "RigidTendonMuscle",
+})
+#: Ligaments: a spring on the path's tendon (:mod:`o2m.convert.ligaments`).
+LIGAMENT_TYPES = frozenset({"Ligament", "Blankevoort1991Ligament"})
+PATH_TYPES = MUSCLE_TYPES | LIGAMENT_TYPES | {"PathActuator", "PathSpring"}
+
 #: The model set each OpenSim base class belongs to, in the order they are tried (a component of
 #: the model's ``<components>`` list is read with the objects of its base class's set).
 _SET_OF_BASE = (("Body", "BodySet"), ("Joint", "JointSet"), ("Constraint", "ConstraintSet"),
@@ -169,6 +178,8 @@ class Joint:
     translations: list[TransformAxis]
     coordinates: list[str]
     element: etree._Element
+    #: True when parent and child are swapped from the document's (:func:`reverse_joint`).
+    reversed: bool = False
 
     def transform(self, coords: dict[str, float]) -> Transform:
         """X_PB: the child body frame in the parent body frame at coordinate values ``coords``."""
@@ -177,6 +188,56 @@ class Joint:
         for ax in self.rotations:
             rot = rot @ axis_angle_matrix(ax.axis, ax.value(coords))
         return self.parent_frame @ Transform(pos=t) @ Transform(rot=rot) @ self.child_frame.inverse()
+
+
+def reverse_joint(j: Joint) -> Joint | None:
+    """Joint ``j`` seen from its child (X_PB(q)⁻¹, parent and child swapped), in canonical form;
+    None when that form cannot hold it: the inverse turns translations-then-rotations into
+    rotations-then-translations, canonical only when coordinates move one kind alone. The
+    unmoving kind folds into a frame; the moving axes run in reverse order about negated axes."""
+    moving = [a for a in j.rotations + j.translations if a.coordinate is not None]
+    if {a.kind for a in moving} == {"rotation", "translation"}:
+        return None
+
+    def flipped(axes: list[TransformAxis], kind: str) -> list[TransformAxis]:
+        return [TransformAxis(f"{kind}{i + 1}", kind, -a.axis, a.coordinate, a.function, a.element)
+                for i, a in enumerate(reversed(axes))]
+
+    if all(a.kind == "rotation" for a in moving):  # X_BM · R3⁻¹R2⁻¹R1⁻¹ · (X_PF · Tr(t0))⁻¹
+        t0 = sum((a.value({}) * a.axis for a in j.translations), np.zeros(3))
+        return Joint(j.name, j.type, j.child, j.parent, j.child_frame, j.parent_frame @ Transform(pos=t0),
+                     flipped(j.rotations, "rotation"), [], j.coordinates, j.element, True)
+    r0 = np.eye(3)  # X_BM · R0⁻¹ · Tr(-t(q)) · X_PF⁻¹
+    for a in j.rotations:
+        r0 = r0 @ axis_angle_matrix(a.axis, a.value({}))
+    return Joint(j.name, j.type, j.child, j.parent, j.child_frame @ Transform(rot=r0.T), j.parent_frame,
+                 [], flipped(j.translations, "translation"), j.coordinates, j.element, True)
+
+
+def orient_joints(joints: list[Joint], doc: OsimDocument) -> list[Joint]:
+    """``joints`` (same order), each reversed whose child is reached from ground before its parent.
+
+    OpenSim 4 builds its tree from ground and reverses such a joint itself (a 3.x ``<reverse>``
+    joint is upgraded to one); in a tree every body is the child of its own joint, so nothing
+    else changes. Joints that close a loop or hang from nothing are left for the builder to refuse."""
+    out = {id(j): j for j in joints}
+    placed, pending = {"ground"}, list(joints)
+    while True:
+        ready = [j for j in pending if (j.parent in placed) != (j.child in placed)]
+        if not ready:
+            return [out[id(j)] for j in joints]
+        for j in ready:
+            if j.parent in placed:
+                placed.add(j.child)
+            else:
+                r = reverse_joint(j)
+                if r is None:
+                    raise doc.error(j.element, f"is reversed (its child '{j.child}' is nearer ground than its "
+                                               f"parent '{j.parent}') and its coordinates move both rotations and "
+                                               "translations, which o2m cannot reverse")
+                out[id(j)] = r
+                placed.add(j.parent)
+            pending.remove(j)
 
 
 @dataclass
@@ -477,7 +538,7 @@ class SkeletonReader:
                 raise doc.error(el, "is a second body with this name")
             bodies[b.name] = b
         coords: dict[str, Coordinate] = {}
-        joints = [self.joint(el, coords) for el in self.set_objects("JointSet")]
+        joints = orient_joints([self.joint(el, coords) for el in self.set_objects("JointSet")], doc)
         couplers: list[Coupler] = []
         point_on_lines: list[PointOnLine] = []
         body_constraints: list[BodyConstraint] = []
@@ -531,8 +592,8 @@ class SkeletonReader:
         for set_tag in ("ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet", "ComponentSet"):
             for el in self.set_objects(set_tag):
                 self.check_known(el)
-                if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
-                    continue  # paths are read by o2m.paths
+                if set_tag == "ForceSet" and el.tag in PATH_TYPES:
+                    continue  # paths are read by o2m.osim.paths (other path forces are skipped, listed)
                 skipped.append(Skipped(el.tag, el.get("name", ""), _skip_reason(set_tag)))
         grav = self.model.find("gravity")
         gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])

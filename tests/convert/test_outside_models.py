@@ -1,12 +1,15 @@
 """Forms of .osim documents the corpus does not use, met in public models from elsewhere:
 bodies, joints and forces in the model's ``<components>`` list, muscles on a path o2m cannot
-convert, and errors about unnamed elements of a 3.x document."""
+convert, and joints OpenSim reverses (the child nearer ground than the parent)."""
 
 from __future__ import annotations
 
 import mujoco
+import numpy as np
+import opensim as osim
 import pytest
 
+from o2m import compare_kinematics
 from o2m.convert.converter import convert
 from o2m.errors import UnsupportedElementError
 from tests.helpers import convert_options
@@ -56,3 +59,105 @@ def test_a_muscle_on_another_path_type_names_it(tmp_path):
     with pytest.raises(UnsupportedElementError, match=r"line 13: <Thelen2003Muscle name=\"muscle\"> has a "
                                                       r"<FunctionBasedPath>, a path o2m cannot convert"):
         convert(src, tmp_path / "out", convert_options())
+
+
+def _reversed_model(path, kind: str) -> str:
+    """ground -pin1-> rod1, then a ``kind`` joint whose parent is rod2 and child rod1: OpenSim
+    reverses it (rod2 hangs from rod1). Offsets and orientations on both sides."""
+    m = osim.Model()
+    m.setName(f"reversed_{kind}")
+    rod1 = osim.Body("rod1", 1.0, osim.Vec3(0, -0.2, 0), osim.Inertia(0.01, 0.002, 0.01))
+    rod2 = osim.Body("rod2", 0.7, osim.Vec3(0.02, -0.1, 0), osim.Inertia(0.004, 0.001, 0.005))
+    m.addBody(rod1)
+    m.addBody(rod2)
+    m.addJoint(osim.PinJoint("pin1", m.getGround(), osim.Vec3(0), osim.Vec3(0), rod1, osim.Vec3(0, 0.5, 0),
+                             osim.Vec3(0)))
+    joint_type = {"pin": osim.PinJoint, "slider": osim.SliderJoint, "free": osim.FreeJoint}[kind]
+    j = joint_type("j2", rod2, osim.Vec3(0.05, 0.4, -0.02), osim.Vec3(0.2, -0.1, 0.3), rod1,
+                   osim.Vec3(0.01, -0.3, 0.02), osim.Vec3(-0.3, 0.4, 0.1))
+    m.addJoint(j)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return str(path)
+
+
+@pytest.mark.parametrize("kind", ["pin", "slider"])
+def test_a_joint_opensim_reverses_converts_exactly(tmp_path, kind):
+    path = _reversed_model(tmp_path / f"{kind}.osim", kind)
+    conv = convert(path, tmp_path / "out", convert_options())
+    assert any("joint 'j2' reversed" in n for n in conv.report.notes)
+    rep = compare_kinematics(path, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+
+
+def test_a_reversed_joint_moving_rotations_and_translations_is_refused(tmp_path):
+    path = _reversed_model(tmp_path / "free.osim", "free")
+    with pytest.raises(UnsupportedElementError, match=r"<FreeJoint name=\"j2\"> is reversed \(its child 'rod1' is "
+                                                      r"nearer ground than its parent 'rod2'\)"):
+        convert(path, tmp_path / "out", convert_options())
+
+
+def test_path_forces_o2m_does_not_convert_are_listed_as_skipped(tmp_path):
+    """A force with a path that is not one o2m converts (ClutchedPathSpring, McKibbenActuator) is
+    left out with its reason in the report, not dropped without a word."""
+    m = osim.Model()
+    m.setName("path_forces")
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+    m.addBody(b)
+    m.addJoint(osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0)))
+    forces = [osim.ClutchedPathSpring("clutch", 100.0, 1.0, 0.1, 0.0), osim.McKibbenActuator("mck", 0.01, 10.0)]
+    for f in forces:
+        f.updGeometryPath().appendNewPathPoint("p1", m.getGround(), osim.Vec3(0, 0, 0))
+        f.updGeometryPath().appendNewPathPoint("p2", b, osim.Vec3(0, 0.1, 0))
+        m.addForce(f)
+    m.finalizeConnections()
+    m.printToXML(str(tmp_path / "path_forces.osim"))
+    conv = convert(tmp_path / "path_forces.osim", tmp_path / "out", convert_options())
+    skipped = {(s.element, s.name): s.reason for s in conv.report.skipped}
+    assert skipped.get(("ClutchedPathSpring", "clutch")) == "this force is not converted yet"
+    assert skipped.get(("McKibbenActuator", "mck")) == "this force is not converted yet"
+
+
+def test_a_blankevoort_ligament_pulls_as_in_opensim(tmp_path):
+    """Blankevoort1991Ligament: a spring on its tendon with OpenSim's toe region and linear part."""
+    m = osim.Model()
+    m.setName("blankevoort")
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+    m.addBody(b)
+    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0, 0, 1.5708), b, osim.Vec3(0),
+                             osim.Vec3(0, 0, 1.5708))  # slides along ground Y
+    joint.upd_coordinates(0).setName("y")
+    joint.upd_coordinates(0).setRangeMin(-0.05)
+    joint.upd_coordinates(0).setRangeMax(0.1)
+    m.addJoint(joint)
+    lig = osim.Blankevoort1991Ligament("lig", m.getGround(), osim.Vec3(0, -0.2, 0), b, osim.Vec3(0, 0, 0))
+    lig.set_slack_length(0.2)
+    lig.set_linear_stiffness(800.0)
+    lig.set_transition_strain(0.1)
+    m.addForce(lig)
+    m.finalizeConnections()
+    path = tmp_path / "blankevoort.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options())
+    recorded = next(a.max_error for a in conv.report.approximations if a.element == "Blankevoort1991Ligament")
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(mj)
+    m = osim.Model(str(path))
+    state = m.initSystem()
+    lig = osim.Blankevoort1991Ligament.safeDownCast(m.getForceSet().get("lig"))
+    ys = np.linspace(-0.05, 0.1, 31)
+    ours, theirs = [], []
+    for y in ys:
+        m.getCoordinateSet().get("y").setValue(state, float(y))
+        m.realizeVelocity(state)
+        theirs.append(lig.getSpringForce(state))
+        d.qpos[mj.joint("y").qposadr[0]] = y
+        mujoco.mj_forward(mj, d)
+        ours.append(-d.qfrc_passive[mj.joint("y").dofadr[0]])  # the ligament pulls the body down: -Y
+    theirs, ours = np.array(theirs), np.array(ours)
+    assert theirs.max() > 300.0 and theirs[ys < 0].max() == 0.0  # stretched up to 50 %, slack below
+    # the dead band and polynomial fit: within 2 % of the largest force (a spring without the toe
+    # region would be 40 N, 11 % off), and no worse than the report says
+    worst = np.abs(ours - theirs).max()
+    assert worst < 0.02 * theirs.max(), np.c_[ys, theirs, ours]
+    assert worst < recorded * 1.05 + 1e-6, (worst, recorded)
