@@ -1,4 +1,5 @@
-"""ExpressionBasedCoordinateForce as a joint spring and damper, when its expression is linear.
+"""ExpressionBasedCoordinateForce as a joint spring and damper, when its expression is linear;
+SpringGeneralizedForce, always linear, likewise.
 
 OpenSim applies the generalized force ``f(q, qdot)`` (N m or N) to its coordinate, ``f`` a Lepton
 expression of the coordinate's value ``q`` and speed ``qdot``. When ``f = a q + b qdot + c`` on the
@@ -7,7 +8,9 @@ exactly: ``stiffness = -a``, ``springref = c / -a``, ``damping = -b``, added to 
 (:func:`o2m.convert.limit_forces.set_joint_passive`). Any other expression (non-linear, a constant
 force without stiffness, a coordinate without its own joint) is skipped with the reason.
 Linearity is checked by evaluating the expression on a grid (a restricted evaluator: numbers,
-``q``, ``qdot``, + - * / ^ and Lepton's functions), not by algebra.
+``q``, ``qdot``, + - * / ^ and Lepton's functions), not by algebra. A SpringGeneralizedForce is
+``-stiffness (q - rest_length) - viscosity qdot``: ``stiffness``, ``springref = rest_length`` and
+``damping = viscosity``.
 """
 
 from __future__ import annotations
@@ -17,11 +20,12 @@ import ast
 import numpy as np
 from lxml import etree
 
-from o2m.convert.force_context import JointSpring, _Context, _text
+from o2m.convert.force_context import JointSpring, _Context, _number, _text
 from o2m.convert.limit_forces import set_joint_passive
 from o2m.osim.skeleton import Skipped
 
-__all__ = ["EXPRESSION_LINEAR_TOLERANCE", "convert_expression_force", "evaluate_expression"]
+__all__ = ["EXPRESSION_LINEAR_TOLERANCE", "convert_expression_force", "convert_spring_generalized_force",
+           "evaluate_expression"]
 
 #: An expression counts as linear when a plane a q + b qdot + c fits it within this fraction of
 #: its largest magnitude on the grid.
@@ -61,16 +65,38 @@ def evaluate_expression(text: str, q: np.ndarray, qdot: np.ndarray) -> np.ndarra
         return np.asarray(ev(tree), dtype=float)
 
 
+def _own_joint(ctx: _Context, el: etree._Element, coord: str) -> bool:
+    """Whether coordinate ``coord`` of force ``el`` has a MuJoCo joint of its own (else the force is
+    listed as skipped); an unknown coordinate is an error."""
+    b = ctx.builder
+    if coord not in b.skel.coordinates:
+        raise b.doc.error(el, f"acts on coordinate '{coord}', which no joint defines")
+    if coord not in b.coord_joint or b.drivers[coord].base != coord or b.skel.coordinates[coord].locked:
+        ctx.out.skipped.append(Skipped(el.tag, el.get("name"), f"coordinate '{coord}' has no joint of its own "
+                                       "(locked or coupled): its force is not applied"))
+        return False
+    return True
+
+
+def convert_spring_generalized_force(ctx: _Context, el: etree._Element) -> None:
+    """SpringGeneralizedForce -> its coordinate's joint spring and damping (see the module)."""
+    coord = _text(el, "coordinate")
+    if not _own_joint(ctx, el, coord):
+        return
+    k, rest, c = (_number(el, prop, 0.0, ctx) for prop in ("stiffness", "rest_length", "viscosity"))
+    for prop, v in (("stiffness", k), ("rest_length", rest), ("viscosity", c)):
+        if not np.isfinite(v):
+            raise ctx.builder.doc.error(el, f"has <{prop}> {v:g}, not a finite number")
+    ctx.out.joint_springs.append(JointSpring(el.get("name"), coord, k, rest if k else 0.0, c))
+    set_joint_passive(ctx, ctx.spec.joint(coord), coord)
+
+
 def convert_expression_force(ctx: _Context, el: etree._Element) -> None:
     """ExpressionBasedCoordinateForce -> its coordinate's joint spring and damping (see the module)."""
     b = ctx.builder
     name = el.get("name")
     coord, text = _text(el, "coordinate"), _text(el, "expression")
-    if coord not in b.skel.coordinates:
-        raise b.doc.error(el, f"acts on coordinate '{coord}', which no joint defines")
-    if coord not in b.coord_joint or b.drivers[coord].base != coord or b.skel.coordinates[coord].locked:
-        ctx.out.skipped.append(Skipped(el.tag, name, f"coordinate '{coord}' has no joint of its own (locked or "
-                                       "coupled): its force is not applied"))
+    if not _own_joint(ctx, el, coord):
         return
     lo, hi = b.fit_range(coord, b.coord_joint[coord][1].kind)
     q, qdot = (g.ravel() for g in np.meshgrid(np.linspace(lo, hi, 21), np.linspace(-_SPEED, _SPEED, 21)))

@@ -161,3 +161,38 @@ def test_a_blankevoort_ligament_pulls_as_in_opensim(tmp_path):
     worst = np.abs(ours - theirs).max()
     assert worst < 0.02 * theirs.max(), np.c_[ys, theirs, ours]
     assert worst < recorded * 1.05 + 1e-6, (worst, recorded)
+
+
+def test_a_spring_generalized_force_is_its_joints_spring_and_damper(tmp_path):
+    m = osim.Model()
+    m.setName("spring_generalized")
+    m.setGravity(osim.Vec3(0))
+    b = osim.Body("b", 2.0, osim.Vec3(0), osim.Inertia(0.1))
+    m.addBody(b)
+    j = osim.PinJoint("p", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
+    j.upd_coordinates(0).setName("q")
+    m.addJoint(j)
+    f = osim.SpringGeneralizedForce("q")
+    f.setName("spring")
+    f.setStiffness(3.0)
+    f.setRestLength(0.2)
+    f.setViscosity(0.5)
+    m.addForce(f)
+    m.finalizeConnections()
+    path = tmp_path / "spring.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options())
+    assert not any(s.name == "spring" for s in conv.report.skipped)
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(mj)
+    m = osim.Model(str(path))
+    state = m.initSystem()
+    c = m.getCoordinateSet().get("q")
+    for q, u in [(0.0, 0.0), (0.5, 0.0), (-0.4, 2.0)]:
+        c.setValue(state, q)
+        c.setSpeedValue(state, u)
+        m.realizeAcceleration(state)
+        theirs = c.getAccelerationValue(state) * 0.1  # the only force on a 0.1 kg m² body
+        d.qpos[:], d.qvel[:] = q, u
+        mujoco.mj_forward(mj, d)
+        assert d.qfrc_passive[0] == pytest.approx(theirs, abs=1e-9), (q, u)
