@@ -594,7 +594,10 @@ class SkeletonReader:
                 self.check_known(el)
                 if set_tag == "ForceSet" and el.tag in PATH_TYPES:
                     continue  # paths are read by o2m.osim.paths (other path forces are skipped, listed)
-                skipped.append(Skipped(el.tag, el.get("name", ""), _skip_reason(set_tag)))
+                reason = _skip_reason(set_tag)
+                if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
+                    reason += " (its path too: no tendon, no force)"
+                skipped.append(Skipped(el.tag, el.get("name", ""), reason))
         grav = self.model.find("gravity")
         gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
         return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,

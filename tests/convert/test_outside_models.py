@@ -114,8 +114,8 @@ def test_path_forces_o2m_does_not_convert_are_listed_as_skipped(tmp_path):
     m.printToXML(str(tmp_path / "path_forces.osim"))
     conv = convert(tmp_path / "path_forces.osim", tmp_path / "out", convert_options())
     skipped = {(s.element, s.name): s.reason for s in conv.report.skipped}
-    assert skipped.get(("ClutchedPathSpring", "clutch")) == "this force is not converted yet"
-    assert skipped.get(("McKibbenActuator", "mck")) == "this force is not converted yet"
+    why = "this force is not converted yet (its path too: no tendon, no force)"
+    assert skipped.get(("ClutchedPathSpring", "clutch")) == why and skipped.get(("McKibbenActuator", "mck")) == why
 
 
 def test_a_blankevoort_ligament_pulls_as_in_opensim(tmp_path):
