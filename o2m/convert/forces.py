@@ -56,7 +56,8 @@ from o2m.convert.ligaments import convert_blankevoort, convert_ligament, fit_lig
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
 from o2m.convert.springs import convert_point_to_point_spring, measure_springs
 from o2m.mj import mjcf_text
-from o2m.osim.skeleton import LIGAMENT_TYPES, SkeletonReader, Skipped
+from o2m.osim.kinds import LIGAMENT_TYPES
+from o2m.osim.skeleton import SkeletonReader, Skipped
 
 __all__ = ["FORCE_TYPES", "HANDLERS", "ForceConversion", "LimitForce", "Ligament", "SideFit", "add_forces",
            "fit_contacts", "fit_deadband", "fit_ligaments", "measure", "motion_type", "restore_precision"]

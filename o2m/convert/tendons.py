@@ -24,8 +24,8 @@ from o2m.convert.conditional import conditional_geom, conditional_roles
 from o2m.convert.pathforces import PathForces
 from o2m.convert.pathpoints import PathContext
 from o2m.convert.wraps import PathGeom, WrapGeoms
+from o2m.osim.kinds import LIGAMENT_TYPES
 from o2m.osim.paths import MUSCLE_TYPES, Path, WrapObject
-from o2m.osim.skeleton import LIGAMENT_TYPES
 from o2m.transforms import Transform
 
 

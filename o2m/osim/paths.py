@@ -11,7 +11,8 @@ import numpy as np
 from lxml import etree
 
 from o2m.osim.functions import Function, parse_function
-from o2m.osim.skeleton import MUSCLE_TYPES, PATH_TYPES, SkeletonReader, _floats
+from o2m.osim.kinds import MUSCLE_TYPES, PATH_TYPES
+from o2m.osim.skeleton import SkeletonReader, _floats
 from o2m.transforms import Transform, body_fixed_xyz
 
 #: Path actuators and forces whose GeometryPath o2m turns into a MuJoCo spatial tendon.

@@ -16,15 +16,14 @@ A PinJoint is one rotation about Z, a SliderJoint one translation along X, and s
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cache
 
 import numpy as np
 from lxml import etree
 
 from o2m.errors import UnsupportedElementError
-from o2m.osim import runtime
 from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.functions import Function, parse_function
+from o2m.osim.kinds import BODY_CONSTRAINTS, PATH_TYPES, opensim_typenames, set_of_type
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
 #: Joint types o2m converts, with the canonical axes of their coordinates in order:
@@ -44,45 +43,6 @@ JOINT_AXES: dict[str, list[tuple[str, tuple[float, float, float]]]] = {
 SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"}
 #: The six axes of a CustomJoint's SpatialTransform.
 TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
-
-
-@cache
-def opensim_typenames() -> frozenset[str]:
-    """Every object type OpenSim 4.6 registers: a tag outside this set is unknown to OpenSim."""
-    opensim = runtime.opensim()
-    names = opensim.ArrayStr()
-    opensim.OpenSimObject.getRegisteredTypenames(names)
-    return frozenset(names.get(i) for i in range(names.getSize()))
-
-
-#: The muscles and other path forces o2m converts (their paths are read by :mod:`o2m.osim.paths`).
-MUSCLE_TYPES = frozenset({
-    "Thelen2003Muscle", "Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle",
-    "Schutte1993Muscle_Deprecated", "DeGrooteFregly2016Muscle", "RigidTendonMuscle",
-})
-#: Ligaments: a spring on the path's tendon (:mod:`o2m.convert.ligaments`).
-LIGAMENT_TYPES = frozenset({"Ligament", "Blankevoort1991Ligament"})
-PATH_TYPES = MUSCLE_TYPES | LIGAMENT_TYPES | {"PathActuator", "PathSpring"}
-
-#: The model set each OpenSim base class belongs to, in the order they are tried (a component of
-#: the model's ``<components>`` list is read with the objects of its base class's set).
-_SET_OF_BASE = (("Body", "BodySet"), ("Joint", "JointSet"), ("Constraint", "ConstraintSet"),
-                ("Force", "ForceSet"), ("Marker", "MarkerSet"), ("ContactGeometry", "ContactGeometrySet"),
-                ("Controller", "ControllerSet"), ("Probe", "ProbeSet"))
-
-
-@cache
-def set_of_type(tag: str) -> str:
-    """The model set ("BodySet", "ForceSet", ...) that holds objects of OpenSim type ``tag``;
-    "ComponentSet" for any other component and for a type OpenSim 4.6 does not know."""
-    if tag not in opensim_typenames():
-        return "ComponentSet"
-    opensim = runtime.opensim()
-    obj = opensim.OpenSimObject.newInstanceOfType(tag)
-    for base, set_tag in _SET_OF_BASE:
-        if obj is not None and getattr(opensim, base).safeDownCast(obj) is not None:
-            return set_tag
-    return "ComponentSet"
 
 
 def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str) -> np.ndarray:
@@ -265,10 +225,6 @@ class PointOnLine:
     follower_body: str
     follower_point: np.ndarray  # (3,)
     element: etree._Element
-
-
-#: Constraints between two bodies that become MuJoCo equalities (:mod:`o2m.convert.constraints`).
-BODY_CONSTRAINTS = frozenset({"WeldConstraint", "PointConstraint", "ConstantDistanceConstraint"})
 
 
 @dataclass
