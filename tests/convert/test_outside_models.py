@@ -15,7 +15,7 @@ from o2m.errors import UnsupportedElementError
 from tests.helpers import convert_options
 
 _MUSCLE_PATH = """<GeometryPath name="path"><PathPointSet><objects>
-<PathPoint name="origin"><socket_parent_frame>/ground</socket_parent_frame><location>0 0.3 0</location></PathPoint>
+<PathPoint name="origin"><socket_parent_frame>/hook</socket_parent_frame><location>0 0 0</location></PathPoint>
 <PathPoint name="insertion"><socket_parent_frame>/body</socket_parent_frame><location>0 0 0</location></PathPoint>
 </objects></PathPointSet></GeometryPath>"""
 
@@ -31,6 +31,8 @@ def _components_model(path_xml: str = _MUSCLE_PATH) -> str:
 <socket_child_frame>/body</socket_child_frame>
 <coordinates><Coordinate name="height"><range>-0.1 0.1</range></Coordinate></coordinates></SliderJoint>
 <Station name="mark"><socket_parent_frame>/body</socket_parent_frame><location>0 0 0</location></Station>
+<PhysicalOffsetFrame name="hook"><socket_parent>/ground</socket_parent>
+<translation>0 0.3 0</translation></PhysicalOffsetFrame>
 </components>
 <Ground name="ground"/>
 <ForceSet name="forceset"><objects>
@@ -49,14 +51,19 @@ def test_bodies_and_joints_in_the_components_list_convert(tmp_path):
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
     assert m.body("body").id > 0 and m.joint("height").type == mujoco.mjtJoint.mjJNT_SLIDE
     assert m.actuator("muscle").id >= 0
-    # the station is a generic component: listed as skipped, not silently dropped
+    # the station is a generic component: listed as skipped, not silently dropped; the frame is
+    # used (the muscle's origin), not skipped
     assert any(s.name == "mark" and "generic components" in s.reason for s in conv.report.skipped)
+    assert not any(s.name == "hook" for s in conv.report.skipped)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    assert d.ten_length[m.tendon("muscle").id] == pytest.approx(0.3, abs=1e-12)  # from the frame 0.3 m up
 
 
 def test_a_muscle_on_another_path_type_names_it(tmp_path):
     src = tmp_path / "fbp.osim"
     src.write_text(_components_model("<FunctionBasedPath name=\"path\"/>"))
-    with pytest.raises(UnsupportedElementError, match=r"line 13: <Thelen2003Muscle name=\"muscle\"> has a "
+    with pytest.raises(UnsupportedElementError, match=r"line 15: <Thelen2003Muscle name=\"muscle\"> has a "
                                                       r"<FunctionBasedPath>, a path o2m cannot convert"):
         convert(src, tmp_path / "out", convert_options())
 
