@@ -36,13 +36,13 @@ PATH_TYPES = MUSCLE_TYPES | LIGAMENT_TYPES | {"PathActuator", "PathSpring"}
 _SET_OF_BASE = (("Body", "BodySet"), ("Joint", "JointSet"), ("Constraint", "ConstraintSet"),
                 ("Force", "ForceSet"), ("Marker", "MarkerSet"), ("ContactGeometry", "ContactGeometrySet"),
                 ("Controller", "ControllerSet"), ("Probe", "ProbeSet"),
-                ("Frame", "frames"))  # other frames: read where a socket names them, never skipped
+                ("PhysicalOffsetFrame", "frames"))  # read where a socket names it, never skipped
 
 
 @cache
 def set_of_type(tag: str) -> str:
     """The model set ("BodySet", "ForceSet", ...) that holds objects of OpenSim type ``tag``;
-    "frames" for a frame that is not a body; "ComponentSet" for any other component and for a
+    "frames" for a PhysicalOffsetFrame; "ComponentSet" for any other component and for a
     type OpenSim 4.6 does not know."""
     if tag not in opensim_typenames():
         return "ComponentSet"
