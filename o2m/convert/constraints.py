@@ -103,7 +103,9 @@ def add_body_constraint(builder: MjcfBuilder, c: BodyConstraint) -> None:
     for body in (c.body1, c.body2):
         if body not in builder.bodies:
             raise builder.doc.error(c.element, f"names body '{body}', which the model does not have")
-    name = c.name or c.type.lower()
+    name = c.name or c.type.lower()  # an unnamed one: OpenSim's default name, numbered as it numbers them
+    taken = {e.name for e in builder.spec.equalities}
+    name = next(n for n in (name, *(f"{name}_{i}" for i in range(len(taken) + 1))) if n not in taken)
     s1, s2 = f"{name}_frame1", f"{name}_frame2"
     _site_at(builder, c.body1, c.frame1, s1)
     _site_at(builder, c.body2, c.frame2, s2)

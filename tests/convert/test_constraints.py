@@ -3,6 +3,8 @@ ConstantDistance constraints hold a swinging pair, in OpenSim and in MuJoCo alik
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import opensim as osim
@@ -190,3 +192,16 @@ def test_validation_gives_coordinates_held_by_body_equalities_opensims_values(tm
     rep = compare_kinematics(path, conv.xml, n_poses=20)
     assert rep.held_coordinates == ["s"], rep.summary()
     assert rep.max_pos_error < 1e-9 and rep.constraint_residual < 1e-6, rep.summary()
+
+
+def test_unnamed_body_constraints_get_names_of_their_own(tmp_path):
+    """Two unnamed PointConstraints (a 4.x document may leave names out) become two equalities."""
+    text = Path(_pendulum_with(tmp_path / "named.osim", "PointConstraint")).read_text()
+    start, end = text.index("<PointConstraint"), text.index("</PointConstraint>") + len("</PointConstraint>")
+    unnamed = text[start:end].replace(' name="held"', "")
+    path = tmp_path / "unnamed.osim"
+    path.write_text(text[:start] + unnamed + "\n" + unnamed + text[end:])
+    conv = convert(path, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    names = {m.equality(i).name for i in range(m.neq)}
+    assert {"pointconstraint", "pointconstraint_0"} <= names, names
