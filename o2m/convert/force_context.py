@@ -169,6 +169,7 @@ class BushingFit:
     ghost_body: str = ""  # a ghost body welded to frame 2 (o2m.convert.bushing_ghost), else ""
     ghost_weld: str = ""  # its weld equality
     ghost_joints: list[str] = field(default_factory=list)  # its joints: tx, ty, tz, rx, ry, rz
+    element: str = "BushingForce"  # the OpenSim type, for the report
 
 
 @dataclass

@@ -50,7 +50,11 @@ from o2m.convert.contact import (
     skip_force,
     skip_unused_geometry,
 )
-from o2m.convert.expression_forces import convert_expression_force, convert_spring_generalized_force
+from o2m.convert.expression_forces import (
+    convert_expression_bushing,
+    convert_expression_force,
+    convert_spring_generalized_force,
+)
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_blankevoort, convert_ligament, fit_ligaments, measure_ligaments
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
@@ -73,6 +77,7 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "BushingForce": convert_bushing,
     "ExpressionBasedCoordinateForce": convert_expression_force,
     "SpringGeneralizedForce": convert_spring_generalized_force,
+    "ExpressionBasedBushingForce": convert_expression_bushing,
     "CoordinateActuator": convert_coordinate_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,

@@ -203,3 +203,50 @@ def test_a_spring_generalized_force_is_its_joints_spring_and_damper(tmp_path):
         d.qpos[:], d.qvel[:] = q, u
         mujoco.mj_forward(mj, d)
         assert d.qfrc_passive[0] == pytest.approx(theirs, abs=1e-9), (q, u)
+
+
+def _bushed(path, kind: str, mx: str = "10*theta_x") -> str:
+    """A body on a PinJoint about Z held by a bushing (frames offset and turned on both sides):
+    a BushingForce, or the ExpressionBasedBushingForce of the same stiffness and damping."""
+    m = osim.Model()
+    m.setName("bushed")
+    b = osim.Body("b", 1.0, osim.Vec3(0, -0.2, 0), osim.Inertia(0.1, 0.2, 0.3))
+    m.addBody(b)
+    m.addJoint(osim.PinJoint("p", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0)))
+    x1, x2 = ((0.1, 0, 0), (0.2, 0, 0)), ((0, 0.1, 0), (0, 0, 0.3))
+    if kind == "BushingForce":
+        def tf(p, o):
+            r = osim.Rotation()
+            r.setRotationToBodyFixedXYZ(osim.Vec3(*o))
+            return osim.Transform(r, osim.Vec3(*p))
+        f = osim.BushingForce("bush", m.getGround(), tf(*x1), b, tf(*x2), osim.Vec3(100, 200, 300),
+                              osim.Vec3(10, 20, 30), osim.Vec3(4, 5, 6), osim.Vec3(1, 2, 3))
+    else:
+        f = osim.ExpressionBasedBushingForce("bush", m.getGround(), osim.Vec3(*x1[0]), osim.Vec3(*x1[1]), b,
+                                             osim.Vec3(*x2[0]), osim.Vec3(*x2[1]))
+        for setter, text in (("setMxExpression", mx), ("setMyExpression", "20*theta_y"),
+                             ("setMzExpression", "theta_z*30"), ("setFxExpression", "100*delta_x"),
+                             ("setFyExpression", "200*delta_y"), ("setFzExpression", "300*delta_z")):
+            getattr(f, setter)(text)
+        f.set_rotational_damping(osim.Vec3(1, 2, 3))
+        f.set_translational_damping(osim.Vec3(4, 5, 6))
+    m.addForce(f)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return str(path)
+
+
+def test_a_linear_expression_bushing_converts_as_its_bushing_force(tmp_path):
+    """OpenSim gives the two the same forces; o2m gives them the same MuJoCo model."""
+    ours = convert(_bushed(tmp_path / "ebbf.osim", "ExpressionBasedBushingForce"), tmp_path / "a", convert_options())
+    theirs = convert(_bushed(tmp_path / "bf.osim", "BushingForce"), tmp_path / "b", convert_options())
+    assert ours.xml.read_text() == theirs.xml.read_text()
+    assert any(a.element == "ExpressionBasedBushingForce" for a in ours.report.approximations)
+    assert not any(s.element == "ExpressionBasedBushingForce" for s in ours.report.skipped)
+
+
+def test_a_coupled_expression_bushing_is_skipped_with_the_reason(tmp_path):
+    path = _bushed(tmp_path / "ebbf.osim", "ExpressionBasedBushingForce", mx="10*theta_x + 3*theta_y")
+    conv = convert(path, tmp_path / "out", convert_options())
+    why = next(s.reason for s in conv.report.skipped if s.element == "ExpressionBasedBushingForce")
+    assert why.startswith("<Mx_expression> '10*theta_x+3*theta_y' is not a constant times theta_x")
