@@ -184,6 +184,9 @@ class MjcfBuilder:
             if j.child not in self.skel.bodies:
                 raise self.doc.error(j.element, f"connects a child frame on '{j.child}', which is not a body")
             by_child[j.child] = j
+            note = f"joint '{j.name}' reversed as OpenSim reverses it: '{j.child}' hangs from '{j.parent}'"
+            if j.reversed and note not in self.result.notes:
+                self.result.notes.append(note)
         for name, body in self.skel.bodies.items():
             if name not in by_child:
                 raise self.doc.error(body.element, "is connected to the model by no joint")

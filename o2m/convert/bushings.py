@@ -59,7 +59,8 @@ from o2m.convert.limit_forces import set_joint_passive
 from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Joint, Skipped
 
-__all__ = ["BUSHING_LINEAR_TOLERANCE", "bushing_generalized_force", "convert_bushing", "fit_deflection",
+__all__ = ["BUSHING_LINEAR_TOLERANCE", "bushing_generalized_force", "convert_bushing", "convert_bushing_gains",
+           "fit_deflection",
            "measure_bushings"]
 
 #: A deflection counts as linear in its coordinates when a linear function fits it within this
@@ -82,17 +83,24 @@ _STEP = 1e-4
 def convert_bushing(ctx: _Context, el: etree._Element) -> None:
     """BushingForce -> a joint spring, fixed tendons, a spatial tendon, a ghost body or nothing; an
     OpenSim 3.x one is skipped (see the module)."""
-    name = el.get("name")
     if el.find("socket_frame1") is None or el.find("socket_frame2") is None:
         _skip(ctx, el, "an OpenSim 3.x bushing (no socket_frame1/2) is not converted")
         return
-    ends = [ctx.reader.socket_frame(el, s)[:2] for s in ("socket_frame1", "socket_frame2")]
     gains = np.concatenate([_vector(el, "rotational_stiffness", (0.0, 0.0, 0.0), ctx),
                             _vector(el, "translational_stiffness", (0.0, 0.0, 0.0), ctx)])
     damps = np.concatenate([_vector(el, "rotational_damping", (0.0, 0.0, 0.0), ctx),
                             _vector(el, "translational_damping", (0.0, 0.0, 0.0), ctx)])
+    convert_bushing_gains(ctx, el, gains, damps)
+
+
+def convert_bushing_gains(ctx: _Context, el: etree._Element, gains: np.ndarray, damps: np.ndarray) -> None:
+    """A bushing between ``el``'s socket_frame1/2 with stiffness ``gains`` and damping ``damps``
+    (6,): about x y z (N m/rad, N m s/rad), then along x y z (N/m, N s/m)."""
+    name = el.get("name")
+    ends = [ctx.reader.socket_frame(el, s)[:2] for s in ("socket_frame1", "socket_frame2")]
     coords = _bushing_coordinates(ctx.builder, ends[0][0], ends[1][0])
     fit = BushingFit(name, coords, ends, gains, damps, *fit_deflection(ctx.builder, ends, coords))
+    fit.element = el.tag
     plan = _plan(fit, ctx.bushing_tolerance)
     if isinstance(plan, str):
         fit.form = add_ghost(ctx, fit, plan)
@@ -103,7 +111,7 @@ def convert_bushing(ctx: _Context, el: etree._Element) -> None:
     forms = []
     if not coords:
         ctx.builder.result.notes.append(
-            f"BushingForce '{name}': its frames do not move relative to each other (every coordinate between them "
+            f"{el.tag} '{name}': its frames do not move relative to each other (every coordinate between them "
             "is locked, or they are on one body), so it moves no coordinate and needs no MuJoCo element")
     elif len(coords) == 1 and fit.linear.any():
         forms.append(_joint_spring(ctx, fit))
@@ -391,6 +399,6 @@ def measure_bushings(out: ForceConversion, model: mujoco.MjModel, builder: MjcfB
         kinds = {builder.coord_joint[c][1].kind for c in fit.coordinates}
         units = {frozenset({"rotation"}): "N m", frozenset({"translation"}): "N"}.get(frozenset(kinds), "N m or N")
         builder.result.approximations.append(Approximation(
-            "BushingForce", fit.name, fit.form, worst, units,
+            fit.element, fit.name, fit.form, worst, units,
             f"the converted force against -Jᵀ(K θ + D θ̇) from the skeleton's kinematics (J = ∂θ/∂q) at {N_POSES} "
             f"poses (largest {peak:.3g})"))

@@ -1,4 +1,5 @@
-"""Constraints between bodies: PointOnLineConstraint.
+"""Constraints between bodies: PointOnLineConstraint, WeldConstraint, PointConstraint and
+ConstantDistanceConstraint.
 
 (CoordinateCouplerConstraints are joint equalities of the builder, :mod:`o2m.convert.builder`.)
 
@@ -8,6 +9,13 @@ line's direction), and a ``connect`` equality that holds the follower's point at
 origin (two sites). Together they leave the follower the motions OpenSim leaves it. The sliding
 body is light (:data:`LINE_BODY_MASS`) and its weight cancelled; the report records what its
 mass adds. Units: metres; OpenSim ground Y-up, MuJoCo world Z-up.
+
+The other three are MuJoCo equalities between two sites, one at each constraint frame or point:
+a ``weld`` (the site frames coincide), a ``connect`` (the site origins coincide), and for a
+constant distance a spatial tendon between the sites held at that length by a ``tendon``
+equality (MuJoCo has no distance equality). Like the couplers they are soft
+(:data:`~o2m.convert.builder.EQUALITY_SOLREF`), and OpenSim's default pose need not satisfy them:
+the first steps pull the bodies together.
 """
 
 from __future__ import annotations
@@ -17,10 +25,10 @@ import numpy as np
 
 from o2m.convert.builder import EQUALITY_SOLIMP, EQUALITY_SOLREF, MjcfBuilder
 from o2m.convert.records import Approximation
-from o2m.osim.skeleton import PointOnLine
-from o2m.transforms import OSIM_TO_MJ
+from o2m.osim.skeleton import BodyConstraint, PointOnLine
+from o2m.transforms import OSIM_TO_MJ, Transform, matrix_to_quat
 
-__all__ = ["LINE_BODY_MASS", "add_constraints", "add_point_on_line"]
+__all__ = ["LINE_BODY_MASS", "add_body_constraint", "add_constraints", "add_point_on_line"]
 
 #: Mass (kg) and principal inertia (kg m²) of the body that slides along the line, its weight
 #: cancelled (gravcomp). MuJoCo takes the softness of the connect equality from this mass, so it
@@ -34,6 +42,8 @@ def add_constraints(builder: MjcfBuilder) -> None:
     """Add every body-to-body constraint of the builder's skeleton (after :meth:`MjcfBuilder.build`)."""
     for c in builder.skel.point_on_lines:
         add_point_on_line(builder, c)
+    for c in builder.skel.body_constraints:
+        add_body_constraint(builder, c)
 
 
 def _in_mujoco_frame(body: str, v: np.ndarray) -> np.ndarray:
@@ -77,3 +87,42 @@ def add_point_on_line(builder: MjcfBuilder, c: PointOnLine) -> None:
     builder.result.notes.append(
         f"PointOnLineConstraint '{c.name}': body '{name}' slides along the line on '{c.line_body}' and a connect "
         f"equality holds '{c.follower_body}''s point at it")
+
+
+def _site_at(builder: MjcfBuilder, body: str, frame: Transform, name: str) -> None:
+    """A site named ``name`` at ``frame`` (in OpenSim body ``body``'s frame), recorded as exact."""
+    rot = OSIM_TO_MJ @ frame.rot if body == "ground" else frame.rot
+    pos, quat = _in_mujoco_frame(body, frame.pos), matrix_to_quat(rot)
+    builder.bodies[body].add_site(name=name, pos=pos, quat=quat, group=4)
+    builder.exact[("site", name)] = {"pos": pos, "quat": quat}
+
+
+def add_body_constraint(builder: MjcfBuilder, c: BodyConstraint) -> None:
+    """The two sites and the equality (weld, connect, or tendon length) of one WeldConstraint,
+    PointConstraint or ConstantDistanceConstraint (module docstring)."""
+    for body in (c.body1, c.body2):
+        if body not in builder.bodies:
+            raise builder.doc.error(c.element, f"names body '{body}', which the model does not have")
+    name = c.name or c.type.lower()  # an unnamed one: OpenSim's default name, numbered as it numbers them
+    taken = {e.name for e in builder.spec.equalities}
+    name = next(n for n in (name, *(f"{name}_{i}" for i in range(len(taken) + 1))) if n not in taken)
+    s1, s2 = f"{name}_frame1", f"{name}_frame2"
+    _site_at(builder, c.body1, c.frame1, s1)
+    _site_at(builder, c.body2, c.frame2, s2)
+    site = mujoco.mjtObj.mjOBJ_SITE
+    if c.type == "ConstantDistanceConstraint":
+        tendon = builder.spec.add_tendon(name=f"{name}_distance")
+        tendon.wrap_site(s1)
+        tendon.wrap_site(s2)
+        # MuJoCo's tendon equality holds L - L(qpos0) at polycoef[0]; qpos0 is the default pose
+        a, b = (builder.ground_frames[bd].apply(f.pos) for bd, f in ((c.body1, c.frame1), (c.body2, c.frame2)))
+        eq = builder.spec.add_equality(name=name, type=mujoco.mjtEq.mjEQ_TENDON, objtype=mujoco.mjtObj.mjOBJ_TENDON,
+                                       name1=f"{name}_distance")
+        eq.data[0] = c.distance - float(np.linalg.norm(a - b))
+        what = f"a tendon equality holds spatial tendon '{name}_distance' at {c.distance:g} m"
+    else:
+        kind = mujoco.mjtEq.mjEQ_WELD if c.type == "WeldConstraint" else mujoco.mjtEq.mjEQ_CONNECT
+        eq = builder.spec.add_equality(name=name, type=kind, objtype=site, name1=s1, name2=s2)
+        what = f"a {'weld' if kind == mujoco.mjtEq.mjEQ_WELD else 'connect'} equality between sites '{s1}' and '{s2}'"
+    eq.solref, eq.solimp = list(EQUALITY_SOLREF), list(EQUALITY_SOLIMP)
+    builder.result.notes.append(f"{c.type} '{name}' ('{c.body1}' to '{c.body2}'): {what}")

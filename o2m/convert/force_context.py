@@ -115,6 +115,7 @@ class Ligament:
     curve: Function
     fit: SideFit | None = None
     length_range: tuple[float, float] = (0.0, 0.0)
+    element: str = "Ligament"  # the OpenSim type, for the report
 
     def tension(self, length: np.ndarray) -> np.ndarray:
         """OpenSim's tension (N) at path ``length`` (m): 0 when not longer than the resting length."""
@@ -168,6 +169,7 @@ class BushingFit:
     ghost_body: str = ""  # a ghost body welded to frame 2 (o2m.convert.bushing_ghost), else ""
     ghost_weld: str = ""  # its weld equality
     ghost_joints: list[str] = field(default_factory=list)  # its joints: tx, ty, tz, rx, ry, rz
+    element: str = "BushingForce"  # the OpenSim type, for the report
 
 
 @dataclass

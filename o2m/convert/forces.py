@@ -50,12 +50,17 @@ from o2m.convert.contact import (
     skip_force,
     skip_unused_geometry,
 )
-from o2m.convert.expression_forces import convert_expression_force
+from o2m.convert.expression_forces import (
+    convert_expression_bushing,
+    convert_expression_force,
+    convert_spring_generalized_force,
+)
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
-from o2m.convert.ligaments import convert_ligament, fit_ligaments, measure_ligaments
+from o2m.convert.ligaments import convert_blankevoort, convert_ligament, fit_ligaments, measure_ligaments
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
 from o2m.convert.springs import convert_point_to_point_spring, measure_springs
 from o2m.mj import mjcf_text
+from o2m.osim.kinds import LIGAMENT_TYPES
 from o2m.osim.skeleton import SkeletonReader, Skipped
 
 __all__ = ["FORCE_TYPES", "HANDLERS", "ForceConversion", "LimitForce", "Ligament", "SideFit", "add_forces",
@@ -67,9 +72,12 @@ __all__ = ["FORCE_TYPES", "HANDLERS", "ForceConversion", "LimitForce", "Ligament
 HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProxyType({
     "CoordinateLimitForce": convert_coordinate_limit_force,
     "Ligament": convert_ligament,
+    "Blankevoort1991Ligament": convert_blankevoort,
     "PointToPointSpring": convert_point_to_point_spring,
     "BushingForce": convert_bushing,
     "ExpressionBasedCoordinateForce": convert_expression_force,
+    "SpringGeneralizedForce": convert_spring_generalized_force,
+    "ExpressionBasedBushingForce": convert_expression_bushing,
     "CoordinateActuator": convert_coordinate_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,
@@ -96,8 +104,9 @@ def add_forces(builder: MjcfBuilder, reader: SkeletonReader, *, bushing_toleranc
             continue
         ctx.out.handled.add((el.tag, el.get("name", "")))
         if not _applies_force(el):
-            ctx.out.skipped.append(Skipped(el.tag, el.get("name", ""), "disabled in OpenSim (appliesForce false)"
-                                           + ("; its path is a tendon without spring" if el.tag == "Ligament" else "")))
+            spring = "; its path is a tendon without spring" if el.tag in LIGAMENT_TYPES else ""
+            why = f"disabled in OpenSim (appliesForce false){spring}"
+            ctx.out.skipped.append(Skipped(el.tag, el.get("name", ""), why))
             continue
         handler(ctx, el)
     skip_unused_geometry(ctx)

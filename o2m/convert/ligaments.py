@@ -3,14 +3,20 @@
 A Ligament's GeometryPath is the spatial tendon :mod:`o2m.convert.tendons` builds; the tension
 ``pcsa_force · curve(L / resting_length)`` (0 when slack) becomes the tendon's spring: a dead
 band ``[0, edge]`` and a polynomial stiffness fitted minimax over the tendon's length range.
+A Blankevoort1991Ligament is the same with its own curve (:class:`BlankevoortCurve`, times
+``linear_stiffness``, over ``slack_length``); its damping is not converted (the report says so).
 The fit is measured by MuJoCo's tendon force at random poses. Lengths in metres, forces in newtons.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 import mujoco
 import numpy as np
 from lxml import etree
+from numpy.typing import ArrayLike
 
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.force_context import (
@@ -26,9 +32,9 @@ from o2m.convert.force_context import (
 )
 from o2m.convert.limit_forces import fit_deadband
 from o2m.convert.records import Approximation
-from o2m.osim.functions import parse_function
+from o2m.osim.functions import Function, parse_function
 
-__all__ = ["convert_ligament", "fit_ligaments", "measure_ligaments"]
+__all__ = ["BlankevoortCurve", "convert_blankevoort", "convert_ligament", "fit_ligaments", "measure_ligaments"]
 
 #: Extra strain beyond rest over which a ligament is fitted when its length range stays short of it.
 LIGAMENT_MIN_STRAIN = 0.05
@@ -54,6 +60,50 @@ def convert_ligament(ctx: _Context, el: etree._Element) -> None:
     if curve_el is None:
         curve_el = etree.fromstring(DEFAULT_LIGAMENT_CURVE)
     ctx.out.ligaments.append(Ligament(name, name, rest, _number(el, "pcsa_force", 0.0, ctx), parse_function(curve_el)))
+
+
+@dataclass(frozen=True, eq=False)
+class BlankevoortCurve(Function):
+    """Blankevoort1991Ligament's spring force over its linear stiffness, at x = length / slack length:
+    with strain e = x - 1, 0 when slack, e² / (2 e_t) in the toe region (e ≤ e_t), e - e_t / 2 beyond."""
+
+    kind: ClassVar[str] = "Blankevoort1991Ligament"
+    transition_strain: float = 0.06
+
+    def __call__(self, x: ArrayLike) -> np.ndarray:
+        e, t = np.asarray(x, dtype=float) - 1.0, self.transition_strain
+        return np.where(e <= 0.0, 0.0, np.where(e <= t, e * e / (2.0 * t), e - 0.5 * t))
+
+    def derivative(self, x: ArrayLike) -> np.ndarray:
+        e, t = np.asarray(x, dtype=float) - 1.0, self.transition_strain
+        return np.where(e <= 0.0, 0.0, np.where(e <= t, e / t, 1.0))
+
+    @property
+    def knots(self) -> np.ndarray:
+        return np.array([1.0, 1.0 + self.transition_strain])
+
+
+def convert_blankevoort(ctx: _Context, el: etree._Element) -> None:
+    """Blankevoort1991Ligament -> a spring on the spatial tendon of its path, as a Ligament."""
+    b = ctx.builder
+    name = el.get("name")
+    if name not in [t.name for t in ctx.spec.tendons]:
+        raise b.doc.error(el, "has no MuJoCo tendon (its GeometryPath was not converted)")
+    slack = _number(el, "slack_length", 0.0, ctx)
+    if not slack > 0.0:  # OpenSim divides by it: the strain is infinite
+        raise b.doc.error(el, f"has slack_length {slack:g}; its strain needs it positive")
+    transition = _number(el, "transition_strain", 0.06, ctx)
+    if not transition > 0.0:
+        raise b.doc.error(el, f"has transition_strain {transition:g}; it must be positive")
+    stiffness = _number(el, "linear_stiffness", 1.0, ctx)
+    if not (np.isfinite(stiffness) and stiffness >= 0.0):
+        raise b.doc.error(el, f"has linear_stiffness {stiffness:g}; it must be a number of at least 0")
+    ctx.out.ligaments.append(Ligament(name, name, slack, stiffness, BlankevoortCurve(transition_strain=transition),
+                                      element=el.tag))
+    damping = _number(el, "damping_coefficient", 0.003, ctx)
+    if damping:
+        b.result.notes.append(f"Blankevoort1991Ligament '{name}': damping_coefficient {damping:g} not converted "
+                              "(the tendon has the elastic force only)")
 
 
 def fit_ligaments(out: ForceConversion, spec: mujoco.MjSpec, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
@@ -92,13 +142,13 @@ def measure_ligaments(out: ForceConversion, model: mujoco.MjModel, builder: Mjcf
             continue
         err_pose = _measure_ligament(lig, model, builder)
         result.approximations.append(Approximation(
-            "Ligament", lig.name,
+            lig.element, lig.name,
             f"tension as a tendon spring: dead band to {lig.fit.edge:.6g} m, stiffness "
             + " ".join(f"{c:.4g}" for c in lig.fit.coef),
             float(max(lig.fit.max_error, err_pose)), "N",
             f"force-length fit over [{lig.length_range[0]:.4g}, {lig.length_range[1]:.4g}] m: worst "
             f"{lig.fit.max_error:.3g} N; MuJoCo's tendon force at {N_POSES} poses: worst {err_pose:.3g} N; "
-            f"pcsa_force {lig.pcsa_force:g} N"))
+            f"{'pcsa_force' if lig.element == 'Ligament' else 'linear_stiffness'} {lig.pcsa_force:g} N"))
 
 
 def _measure_ligament(lig: Ligament, model: mujoco.MjModel, builder: MjcfBuilder) -> float:

@@ -378,12 +378,13 @@ class _Bench:
 def _muscle_elements(doc, names: list[str]) -> dict[str, etree._Element]:
     """The ForceSet XML element of each named muscle (4.x document)."""
     out: dict[str, etree._Element] = {}
-    fs = doc.model.find("ForceSet")
-    objects = fs.find("objects") if fs is not None else None
-    if objects is not None:
-        for el in objects:
-            if isinstance(el.tag, str) and el.get("name") in names:
-                out.setdefault(el.get("name"), el)
+    # the ForceSet's objects, then the model's <components> (where a 4.x model may keep forces)
+    for el in doc.model.iterfind("ForceSet/objects/*"):
+        if isinstance(el.tag, str) and el.get("name") in names:
+            out.setdefault(el.get("name"), el)
+    for el in doc.model.iterfind("components/*"):
+        if isinstance(el.tag, str) and el.get("name") in names:
+            out.setdefault(el.get("name"), el)
     return out
 
 

@@ -135,7 +135,7 @@ def _named_by_forces(skel: Skeleton, names: set[str]) -> bool:
     coordinate's MuJoCo joint, which a shortcut removes."""
     if skel.document is None:
         return False
-    return any((el.text or "").strip() in names for forces in skel.document.model.iter("ForceSet")
+    return any((el.text or "").strip() in names for forces in skel.document.model.iter("ForceSet", "components")
                for el in forces.iter() if isinstance(el.tag, str))
 
 

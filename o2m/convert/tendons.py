@@ -24,6 +24,7 @@ from o2m.convert.conditional import conditional_geom, conditional_roles
 from o2m.convert.pathforces import PathForces
 from o2m.convert.pathpoints import PathContext
 from o2m.convert.wraps import PathGeom, WrapGeoms
+from o2m.osim.kinds import LIGAMENT_TYPES
 from o2m.osim.paths import MUSCLE_TYPES, Path, WrapObject
 from o2m.transforms import Transform
 
@@ -141,7 +142,7 @@ class TendonBuilder:
             act = self.spec.add_actuator(name=path.owner, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=path.owner)
             fmax = float(path.element.findtext("max_isometric_force") or 1000.0)
             act.set_to_muscle(timeconst=[0.01, 0.04], tausmooth=0.0, force=fmax)
-        elif path.owner_type != "Ligament":  # a ligament's spring is added by o2m.forces
+        elif path.owner_type not in LIGAMENT_TYPES:  # a ligament's spring is added by o2m.forces
             self.b.result.notes.append(f"{path.owner_type} '{path.owner}': tendon only (no actuator yet)")
 
 

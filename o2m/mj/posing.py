@@ -20,6 +20,7 @@ from o2m.errors import ValidationError
 
 __all__ = [
     "JointEquality",
+    "equality_residual",
     "joint_equality_plan",
     "joint_qpos_address",
     "load_mjcf",
@@ -163,6 +164,16 @@ def pose_mujoco(
     data.qpos[:] = qpos
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
+
+
+def equality_residual(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Largest violation of the active equalities other than joint equalities (weld, connect,
+    tendon) at ``data.qpos`` (m, or rad for a weld's rotation); runs ``mj_fwdPosition``."""
+    mujoco.mj_fwdPosition(model, data)
+    rows = data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    ids = data.efc_id[:data.nefc][rows]
+    body = model.eq_type[ids] != mujoco.mjtEq.mjEQ_JOINT
+    return float(np.abs(data.efc_pos[:data.nefc][rows][body]).max(initial=0.0))
 
 
 def load_mjcf(mjcf_path: str | os.PathLike) -> mujoco.MjModel:

@@ -79,15 +79,20 @@ class OsimDocument:
     # -- locating elements -------------------------------------------------------------
     def line_of(self, el: etree._Element) -> int | None:
         """Line of ``el`` in the user's file (for an upgraded 3.x document, the line of the
-        element with the same tag and name in the original, when there is one)."""
+        element with the same tag and name in the original, when there is one; else, as OpenSim
+        names an unnamed object when it upgrades it, the one at the same place among the elements
+        of that tag, when both documents have as many)."""
         if not self.upgraded:
             return el.sourceline
-        name = el.get("name")
-        if self.original is None or name is None:
+        if self.original is None:
             return None
+        name = el.get("name")
         for cand in self.original.iter(el.tag):
-            if cand.get("name") == name:
+            if name is not None and cand.get("name") == name:
                 return cand.sourceline
+        ours, theirs = list(self.model.iter(el.tag)), list(self.original.iter(el.tag))
+        if len(ours) == len(theirs) and el in ours:
+            return theirs[ours.index(el)].sourceline
         return None
 
     def error(self, el: etree._Element, message: str) -> UnsupportedElementError:

@@ -11,15 +11,11 @@ import numpy as np
 from lxml import etree
 
 from o2m.osim.functions import Function, parse_function
+from o2m.osim.kinds import MUSCLE_TYPES, PATH_TYPES
 from o2m.osim.skeleton import SkeletonReader, _floats
 from o2m.transforms import Transform, body_fixed_xyz
 
 #: Path actuators and forces whose GeometryPath o2m turns into a MuJoCo spatial tendon.
-MUSCLE_TYPES = frozenset({
-    "Thelen2003Muscle", "Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle",
-    "Schutte1993Muscle_Deprecated", "DeGrooteFregly2016Muscle", "RigidTendonMuscle",
-})
-PATH_TYPES = MUSCLE_TYPES | {"PathActuator", "Ligament", "PathSpring"}
 WRAP_TYPES = frozenset({"WrapSphere", "WrapCylinder", "WrapEllipsoid", "WrapTorus"})
 #: A muscle's numbers o2m reads, and the interval each must lie in when given: (low, high, whether
 #: low itself is allowed). A negative max isometric force would become MuJoCo's "compute the force
@@ -206,6 +202,10 @@ def read_paths(reader: SkeletonReader, coords: dict[str, float]) -> list[Path]:
             check_muscle_numbers(reader, el)
         gp = el.find("GeometryPath")
         if gp is None:
+            other = next((c.tag for c in el if isinstance(c.tag, str) and c.tag.endswith("Path")), None)
+            if other is not None:  # FunctionBasedPath, Scholz2015GeometryPath: no points to place
+                raise doc.error(el, f"has a <{other}>, a path o2m cannot convert (only GeometryPath, "
+                                    "a path of points and wrap objects)")
             raise doc.error(el, "has no <GeometryPath>")
         points = [read_point(reader, p, coords) for p in gp.iterfind("PathPointSet/objects/*")
                   if isinstance(p.tag, str)]

@@ -4,32 +4,21 @@ Everything a MuJoCo model needs besides muscles: bodies (mass, centre of mass, i
 frames, joints reduced to one canonical form, coordinates, coupler constraints, markers and
 attached geometry. Units are OpenSim's: metres, kilograms, radians, in OpenSim's Y-up frames.
 
-Canonical joint form. Every OpenSim joint type is written as OpenSim's CustomJoint writes it:
-
-    X_PB(q) = X_PF · Tr(Σ_k t_k(q) e_k) · R(a1, r1(q)) · R(a2, r2(q)) · R(a3, r3(q)) · X_BM⁻¹
-
-with X_PF the parent frame in the parent body, X_BM the child frame in the child body,
-translations t_k along axes e_k of F, and rotations r_i applied about body-fixed axes a_i.
-A PinJoint is one rotation about Z, a SliderJoint one translation along X, and so on.
-
-EllipsoidJoint and ScapulothoracicJoint do not fit that form: Simbody's Ellipsoid mobilizer
-moves the joint frame's origin over an ellipsoid as it turns (:class:`EllipsoidSurface`). Their
-joints keep the coordinates' rotation axes in ``rotations`` (X, Y, Z and the winging axis) and
-carry the surface in ``Joint.surface``, which :meth:`Joint.transform` follows exactly.
+Joints are in the canonical form of :mod:`o2m.osim.joints`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cache
 
 import numpy as np
 from lxml import etree
 
 from o2m.errors import UnsupportedElementError
-from o2m.osim import runtime
 from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.functions import Function, parse_function
+from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, orient_joints
+from o2m.osim.kinds import BODY_CONSTRAINTS, PATH_TYPES, opensim_typenames, set_of_type
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
 #: Joint types o2m converts, with the canonical axes of their coordinates in order:
@@ -52,15 +41,6 @@ SURFACE_JOINTS = {"EllipsoidJoint": 3, "ScapulothoracicJoint": 4}
 SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"} | frozenset(SURFACE_JOINTS)
 #: The six axes of a CustomJoint's SpatialTransform.
 TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
-
-
-@cache
-def opensim_typenames() -> frozenset[str]:
-    """Every object type OpenSim 4.6 registers: a tag outside this set is unknown to OpenSim."""
-    opensim = runtime.opensim()
-    names = opensim.ArrayStr()
-    opensim.OpenSimObject.getRegisteredTypenames(names)
-    return frozenset(names.get(i) for i in range(names.getSize()))
 
 
 def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str) -> np.ndarray:
@@ -127,80 +107,6 @@ class Coordinate:
 
 
 @dataclass
-class TransformAxis:
-    """One axis of a joint's canonical form; value = ``function(coordinate)``."""
-
-    name: str
-    kind: str  # "rotation" or "translation"
-    axis: np.ndarray  # (3,) unit vector
-    coordinate: str | None
-    function: Function
-    element: etree._Element
-
-    def value(self, coords: dict[str, float]) -> float:
-        x = coords[self.coordinate] if self.coordinate is not None else 0.0
-        return float(self.function(np.array([x]))[0])
-
-
-@dataclass
-class EllipsoidSurface:
-    """Simbody's Ellipsoid mobilizer inside an EllipsoidJoint or ScapulothoracicJoint.
-
-    With R = Rx(q1) Ry(q2) Rz(q3) (body-fixed X-Y-Z angles, the joint's first three
-    coordinates), the mobilizer's M frame sits in its F frame at
-    ``X_FM = (R, diag(radii) R e_z)``: on the ellipsoid of semi-axes ``radii`` (m, along F's x,
-    y, z) centred on F's origin. A ScapulothoracicJoint turns F by +90 deg about z in its parent
-    frame (the thorax's x and y radii swap) and M back by -90 deg, then turns by its fourth
-    coordinate (winging) about ``winging_axis`` through ``winging_point``, in that last frame.
-    """
-
-    radii: np.ndarray  # (3,) m
-    frame: Transform  # F in the joint's parent frame
-    after: Transform  # the frame after M, in M
-    winging_axis: np.ndarray | None = None  # (3,) unit
-    winging_point: np.ndarray | None = None  # (3,) m
-
-    def transform(self, q: list[float]) -> Transform:
-        """The frame after the surface (and the winging) in the joint's parent frame, at angles ``q`` (rad)."""
-        rot = axis_angle_matrix(np.array(_X), q[0]) @ axis_angle_matrix(np.array(_Y), q[1]) \
-            @ axis_angle_matrix(np.array(_Z), q[2])
-        out = self.frame @ Transform(rot, self.radii * rot[:, 2]) @ self.after
-        if self.winging_axis is not None:
-            p = self.winging_point
-            out = out @ Transform(pos=p) @ Transform(axis_angle_matrix(self.winging_axis, q[3])) @ Transform(pos=-p)
-        return out
-
-
-@dataclass
-class Joint:
-    """A joint in canonical form: ``parent_frame`` in ``parent`` and ``child_frame`` in ``child``;
-    ``surface`` for the two joint types on Simbody's Ellipsoid mobilizer (module docstring)."""
-
-    name: str
-    type: str
-    parent: str
-    child: str
-    parent_frame: Transform
-    child_frame: Transform
-    rotations: list[TransformAxis]
-    translations: list[TransformAxis]
-    coordinates: list[str]
-    element: etree._Element
-    surface: EllipsoidSurface | None = None
-
-    def transform(self, coords: dict[str, float]) -> Transform:
-        """X_PB: the child body frame in the parent body frame at coordinate values ``coords``."""
-        if self.surface is not None:
-            inner = self.surface.transform([ax.value(coords) for ax in self.rotations])
-            return self.parent_frame @ inner @ self.child_frame.inverse()
-        t = sum((ax.value(coords) * ax.axis for ax in self.translations), np.zeros(3))
-        rot = np.eye(3)
-        for ax in self.rotations:
-            rot = rot @ axis_angle_matrix(ax.axis, ax.value(coords))
-        return self.parent_frame @ Transform(pos=t) @ Transform(rot=rot) @ self.child_frame.inverse()
-
-
-@dataclass
 class Coupler:
     """CoordinateCouplerConstraint: ``dependent = function(independent)``."""
 
@@ -224,6 +130,25 @@ class PointOnLine:
     direction: np.ndarray  # (3,) unit
     follower_body: str
     follower_point: np.ndarray  # (3,)
+    element: etree._Element
+
+
+@dataclass
+class BodyConstraint:
+    """WeldConstraint (frame 1 on ``body1`` coincides with frame 2 on ``body2``), PointConstraint
+    (their origins coincide) or ConstantDistanceConstraint (their origins stay ``distance`` m apart).
+
+    The frames are in the bodies' own frames (OpenSim's, Y-up for ground); for the two point
+    constraints only their positions count.
+    """
+
+    name: str
+    type: str
+    body1: str
+    frame1: Transform
+    body2: str
+    frame2: Transform
+    distance: float | None
     element: etree._Element
 
 
@@ -259,6 +184,7 @@ class Skeleton:
     skipped: list[Skipped] = field(default_factory=list)
     document: OsimDocument | None = None
     point_on_lines: list[PointOnLine] = field(default_factory=list)
+    body_constraints: list[BodyConstraint] = field(default_factory=list)
 
 
 class SkeletonReader:
@@ -318,15 +244,38 @@ class SkeletonReader:
         return PointOnLine(el.get("name", ""), line_body, x_line.apply(line_point), x_line.rot @ (direction / norm),
                            follower, x_follow.apply(follower_point), el)
 
+    def body_constraint(self, el: etree._Element) -> BodyConstraint:
+        """A :data:`BODY_CONSTRAINTS` element, its frames or points moved into its sockets' bodies."""
+        if el.tag == "WeldConstraint":
+            (b1, x1, _), (b2, x2, _) = (self.socket_frame(el, f"socket_frame{i}") for i in (1, 2))
+            return BodyConstraint(el.get("name", ""), el.tag, b1, x1, b2, x2, None, el)
+        ends = []
+        for i in (1, 2):
+            body, x, _ = self.socket_frame(el, f"socket_body_{i}")
+            loc = el.find(f"location_body_{i}")
+            point = _floats(loc, 3, self.doc, f"location_body_{i}") if loc is not None else np.zeros(3)
+            ends.append((body, Transform(pos=x.apply(point))))
+        distance = None
+        if el.tag == "ConstantDistanceConstraint":
+            d = el.find("constant_distance")
+            distance = float(_floats(d, 1, self.doc, "constant_distance")[0]) if d is not None else 1.0
+            if distance < 0:
+                raise self.doc.error(el, f"has a negative <constant_distance> {distance:g}")
+        return BodyConstraint(el.get("name", ""), el.tag, *ends[0], *ends[1], distance, el)
+
     # -- elements ----------------------------------------------------------------------
     def set_objects(self, set_tag: str) -> list[etree._Element]:
-        """The objects of the model's ``set_tag`` sets; one sharing its path with an earlier one (two
-        muscles of one name, say) raises an error naming both (:meth:`OsimDocument.check_unique`)."""
+        """The objects of the model's ``set_tag`` sets, then those of its ``<components>`` list that
+        belong to that set (:func:`set_of_type`: OpenSim 4.x may keep bodies, joints and forces
+        there); one sharing its path with an earlier one (two muscles of one name, say) raises an
+        error naming both (:meth:`OsimDocument.check_unique`)."""
         objs: list[etree._Element] = []
         for s in self.model.findall(set_tag):
             holder = s.find("objects")
             if holder is not None:
                 objs.extend(c for c in holder if isinstance(c.tag, str))
+        for holder in self.model.findall("components"):
+            objs.extend(c for c in holder if isinstance(c.tag, str) and set_of_type(c.tag) == set_tag)
         for el in objs:
             self.doc.check_unique(el)
         return objs
@@ -481,9 +430,10 @@ class SkeletonReader:
                 raise doc.error(el, "is a second body with this name")
             bodies[b.name] = b
         coords: dict[str, Coordinate] = {}
-        joints = [self.joint(el, coords) for el in self.set_objects("JointSet")]
+        joints = orient_joints([self.joint(el, coords) for el in self.set_objects("JointSet")], doc)
         couplers: list[Coupler] = []
         point_on_lines: list[PointOnLine] = []
+        body_constraints: list[BodyConstraint] = []
         for el in self.set_objects("ConstraintSet"):
             self.check_known(el)
             enforced = _bool(el.find("isEnforced"), True) and not _bool(el.find("isDisabled"), False)
@@ -494,8 +444,11 @@ class SkeletonReader:
                 if el.tag == "PointOnLineConstraint":
                     point_on_lines.append(self.point_on_line(el))
                     continue
-                raise doc.error(el, "is a constraint o2m cannot convert (only CoordinateCouplerConstraint and "
-                                "PointOnLineConstraint)")
+                if el.tag in BODY_CONSTRAINTS:
+                    body_constraints.append(self.body_constraint(el))
+                    continue
+                raise doc.error(el, "is a constraint o2m cannot convert (only CoordinateCouplerConstraint, "
+                                f"PointOnLineConstraint, {', '.join(sorted(BODY_CONSTRAINTS))})")
             if not enforced:
                 skipped.append(Skipped(el.tag, el.get("name", ""), "constraint is not enforced"))
                 continue
@@ -531,13 +484,16 @@ class SkeletonReader:
         for set_tag in ("ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet", "ComponentSet"):
             for el in self.set_objects(set_tag):
                 self.check_known(el)
+                if set_tag == "ForceSet" and el.tag in PATH_TYPES:
+                    continue  # paths are read by o2m.osim.paths (other path forces are skipped, listed)
+                reason = _skip_reason(set_tag)
                 if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
-                    continue  # paths are read by o2m.paths
-                skipped.append(Skipped(el.tag, el.get("name", ""), _skip_reason(set_tag)))
+                    reason += " (its path too: no tendon, no force)"
+                skipped.append(Skipped(el.tag, el.get("name", ""), reason))
         grav = self.model.find("gravity")
         gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
         return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,
-                        markers, geometry, skipped, doc, point_on_lines)
+                        markers, geometry, skipped, doc, point_on_lines, body_constraints)
 
 
 def _skip_reason(set_tag: str) -> str:

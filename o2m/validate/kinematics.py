@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 from o2m.errors import MissingJointError
-from o2m.mj.posing import joint_equality_plan, joint_qpos_address, load_mjcf, pose_mujoco
+from o2m.mj.posing import equality_residual, joint_equality_plan, joint_qpos_address, load_mjcf, pose_mujoco
 from o2m.osim import runtime
 from o2m.transforms import OSIM_TO_MJ
 
@@ -139,6 +139,12 @@ class KinematicsReport:
     locked_coordinates: list[str] = field(default_factory=list)
     worst_pose: WorstPose | None = None
     skipped_poses: int = 0
+    #: Dependent coordinates held by body equalities (given OpenSim's values) and the largest
+    #: residual of those equalities at OpenSim's poses (m, or rad for a weld's rotation); not part
+    #: of :meth:`ok`: OpenSim leaves its own constraints unmet where a coordinate it would move
+    #: is at the end of its range.
+    held_coordinates: list[str] = field(default_factory=list)
+    constraint_residual: float = 0.0
 
     @property
     def name(self) -> str:
@@ -191,6 +197,10 @@ class KinematicsReport:
             f"COM error {self.com_max_error * 1e3:.3g} mm"
         )
         lines.append(f"  mass OpenSim {self.mass_opensim:.6g} kg, MuJoCo {self.mass_mujoco:.6g} kg")
+        if self.held_coordinates:
+            lines.append(f"  held by body equalities (OpenSim's values): {', '.join(self.held_coordinates)}; "
+                         f"equality residual at OpenSim's poses {self.constraint_residual:.3g} (OpenSim's own "
+                         "may be as large where a coordinate is at the end of its range)")
         if self.missing_bodies:
             lines.append(f"  missing in MuJoCo: {', '.join(self.missing_bodies)}")
         if self.extra_bodies:
@@ -274,6 +284,8 @@ def compare_kinematics(
     constraint, which would otherwise count as conversion error. Random poses OpenSim fails
     to assemble are skipped and counted in ``skipped_poses``.
 
+    Dependent coordinates that no joint equality drives (held by a weld, connect or tendon
+    equality) take OpenSim's values, and the report gives those equalities' residual.
     ``dependents="opensim"`` instead writes every MuJoCo joint from OpenSim's own values
     (coordinates by name, CustomJoint transform axes by ``<joint>_<axis>``, e.g.
     ``knee_r_translation1``) and resolves no equality: it measures the converted structure
@@ -314,8 +326,7 @@ def compare_kinematics(
         raise MissingJointError(missing_joints, mjcf_path)
 
     # Bodies.
-    body_set = os_model.getBodySet()
-    os_bodies = {body_set.get(i).getName(): body_set.get(i) for i in range(body_set.getSize())}
+    os_bodies = {b.getName(): b for b in os_model.getBodyList()}  # the BodySet's and any in <components>
     mj_bodies = {
         mujoco.mj_id2name(mj_model, mujoco.mjtObj.mjOBJ_BODY, i) or f"<body {i}>": i
         for i in range(1, mj_model.nbody)
@@ -339,6 +350,14 @@ def compare_kinematics(
     if dependents not in ("mujoco", "opensim"):
         raise ValueError(f"dependents must be 'mujoco' or 'opensim', not {dependents!r}")
     plan = joint_equality_plan(mj_model) if dependents == "mujoco" else []
+    # dependent coordinates no coupler drives are held by body equalities (weld, connect, tendon
+    # length), which MuJoCo meets only as it steps: they take OpenSim's values, and the
+    # equalities' residual at those poses measures the conversion instead (a coupler's dependent
+    # must follow its joint equality: a missing one is an error to find)
+    coupled = _coupler_dependents(os_model)
+    held = [n for n in dependent if n not in coupled and _has_scalar_joint(mj_model, n)] \
+        if dependents == "mujoco" else []
+    residual = 0.0
     axis_values = _transform_axes_by_mujoco_name(os_model, mj_model) if dependents == "opensim" else {}
 
     nb = len(common)
@@ -367,7 +386,9 @@ def compare_kinematics(
         values = {name: float(c.getValue(state)) for name, c in zip(all_names, coords, strict=True)}
 
         if dependents == "mujoco":
-            pose_mujoco(mj_model, mj_data, {n: values[n] for n in indep_names}, plan=plan)
+            pose_mujoco(mj_model, mj_data, {n: values[n] for n in indep_names + held}, plan=plan)
+            if held:
+                residual = max(residual, equality_residual(mj_model, mj_data))
         else:
             given = {n: v for n, v in values.items() if _has_scalar_joint(mj_model, n)}
             given.update({n: float(ax.getValue(state)) for n, ax in axis_values.items()})
@@ -421,9 +442,23 @@ def compare_kinematics(
         extra_bodies=extra_bodies,
         dependent_coordinates=dependent,
         locked_coordinates=locked,
+        held_coordinates=held,
+        constraint_residual=residual,
         worst_pose=worst,
         skipped_poses=skipped,
     )
+
+
+def _coupler_dependents(os_model: Any) -> set[str]:
+    """Names of the dependent coordinates of the model's enforced CoordinateCouplerConstraints."""
+    opensim = runtime.opensim()
+    cs = os_model.getConstraintSet()
+    out = set()
+    for i in range(cs.getSize()):
+        c = opensim.CoordinateCouplerConstraint.safeDownCast(cs.get(i))
+        if c is not None and c.get_isEnforced():
+            out.add(c.getDependentCoordinateName())
+    return out
 
 
 def _has_scalar_joint(model: mujoco.MjModel, name: str) -> bool:

@@ -213,8 +213,7 @@ def opensim_frames(
         assemble = any(c.isDependent(state) and not c.getLocked(state) and n not in coordinate_names
                        for n, c in coords.items())
 
-    bset = os_model.getBodySet()
-    os_bodies = {bset.get(i).getName(): bset.get(i) for i in range(bset.getSize())}
+    os_bodies = {b.getName(): b for b in os_model.getBodyList()}  # the BodySet's and any in <components>
     names = [model.body(b).name for b in range(model.nbody)]
     mapped = [b for b in range(1, model.nbody) if names[b] in os_bodies]
     # Bodies without an OpenSim namesake follow their nearest mapped ancestor ("anchor") with

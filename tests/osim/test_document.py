@@ -132,3 +132,24 @@ def test_groups_may_repeat_names(tug, tmp_path):
     assert text != tug
     conv = convert(_write(tmp_path, "groups", text), tmp_path / "out", convert_options(**FAST))
     assert conv.xml.exists()
+
+
+def test_an_unnamed_element_of_an_upgraded_document_keeps_its_line(tmp_path):
+    """OpenSim names an unnamed 3.x object when it upgrades the document ("weldconstraint"); its
+    errors still point at its line in the user's file, found by its place among its tag's elements."""
+    from o2m.osim.document import OsimDocument
+
+    original = etree.ElementTree(etree.fromstring(
+        "<OpenSimDocument Version=\"30000\">\n<Model name=\"m\">\n<ConstraintSet><objects>\n"
+        "<WeldConstraint name=\"first\"/>\n<WeldConstraint>\n</WeldConstraint>\n</objects></ConstraintSet>\n"
+        "</Model>\n</OpenSimDocument>"))
+    upgraded = etree.fromstring(
+        "<Model name=\"m\"><ConstraintSet><objects><WeldConstraint name=\"first\"/>"
+        "<WeldConstraint name=\"weldconstraint\"/></objects></ConstraintSet></Model>")
+    doc = OsimDocument(path=tmp_path / "m.osim", model=upgraded, version=30000, original=original)
+    first, second = upgraded.iter("WeldConstraint")
+    assert doc.line_of(first) == 4 and doc.line_of(second) == 5
+    assert "m.osim:line 5: <WeldConstraint name=\"weldconstraint\">" in str(doc.error(second, "x"))
+    # counts that differ (a 3.x <defaults> entry the upgrade drops) give no line rather than a wrong one
+    original.getroot().find("Model").insert(0, etree.fromstring("<defaults><WeldConstraint/></defaults>"))
+    assert doc.line_of(second) is None

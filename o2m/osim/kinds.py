@@ -1,0 +1,54 @@
+"""Which OpenSim types o2m converts, and where the model keeps each: type-name sets and lookups
+through OpenSim's registry (no document reading here)."""
+
+from __future__ import annotations
+
+from functools import cache
+
+from o2m.osim import runtime
+
+__all__ = ["BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MUSCLE_TYPES", "PATH_TYPES", "opensim_typenames", "set_of_type"]
+
+#: Constraints between two bodies that become MuJoCo equalities (:mod:`o2m.convert.constraints`).
+BODY_CONSTRAINTS = frozenset({"WeldConstraint", "PointConstraint", "ConstantDistanceConstraint"})
+
+
+@cache
+def opensim_typenames() -> frozenset[str]:
+    """Every object type OpenSim 4.6 registers: a tag outside this set is unknown to OpenSim."""
+    opensim = runtime.opensim()
+    names = opensim.ArrayStr()
+    opensim.OpenSimObject.getRegisteredTypenames(names)
+    return frozenset(names.get(i) for i in range(names.getSize()))
+
+
+#: The muscles and other path forces o2m converts (their paths are read by :mod:`o2m.osim.paths`).
+MUSCLE_TYPES = frozenset({
+    "Thelen2003Muscle", "Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle",
+    "Schutte1993Muscle_Deprecated", "DeGrooteFregly2016Muscle", "RigidTendonMuscle",
+})
+#: Ligaments: a spring on the path's tendon (:mod:`o2m.convert.ligaments`).
+LIGAMENT_TYPES = frozenset({"Ligament", "Blankevoort1991Ligament"})
+PATH_TYPES = MUSCLE_TYPES | LIGAMENT_TYPES | {"PathActuator", "PathSpring"}
+
+#: The model set each OpenSim base class belongs to, in the order they are tried (a component of
+#: the model's ``<components>`` list is read with the objects of its base class's set).
+_SET_OF_BASE = (("Body", "BodySet"), ("Joint", "JointSet"), ("Constraint", "ConstraintSet"),
+                ("Force", "ForceSet"), ("Marker", "MarkerSet"), ("ContactGeometry", "ContactGeometrySet"),
+                ("Controller", "ControllerSet"), ("Probe", "ProbeSet"),
+                ("PhysicalOffsetFrame", "frames"))  # read where a socket names it, never skipped
+
+
+@cache
+def set_of_type(tag: str) -> str:
+    """The model set ("BodySet", "ForceSet", ...) that holds objects of OpenSim type ``tag``;
+    "frames" for a PhysicalOffsetFrame; "ComponentSet" for any other component and for a
+    type OpenSim 4.6 does not know."""
+    if tag not in opensim_typenames():
+        return "ComponentSet"
+    opensim = runtime.opensim()
+    obj = opensim.OpenSimObject.newInstanceOfType(tag)
+    for base, set_tag in _SET_OF_BASE:
+        if obj is not None and getattr(opensim, base).safeDownCast(obj) is not None:
+            return set_tag
+    return "ComponentSet"

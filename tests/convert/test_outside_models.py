@@ -1,0 +1,252 @@
+"""Forms of .osim documents the corpus does not use, met in public models from elsewhere:
+bodies, joints and forces in the model's ``<components>`` list, muscles on a path o2m cannot
+convert, and joints OpenSim reverses (the child nearer ground than the parent)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import opensim as osim
+import pytest
+
+from o2m import compare_kinematics
+from o2m.convert.converter import convert
+from o2m.errors import UnsupportedElementError
+from tests.helpers import convert_options
+
+_MUSCLE_PATH = """<GeometryPath name="path"><PathPointSet><objects>
+<PathPoint name="origin"><socket_parent_frame>/hook</socket_parent_frame><location>0 0 0</location></PathPoint>
+<PathPoint name="insertion"><socket_parent_frame>/body</socket_parent_frame><location>0 0 0</location></PathPoint>
+</objects></PathPointSet></GeometryPath>"""
+
+
+def _components_model(path_xml: str = _MUSCLE_PATH) -> str:
+    """A body hanging from a muscle, the body and its slider in the model's <components>."""
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40600">
+<Model name="hanging">
+<components>
+<Body name="body"><mass>0.5</mass><mass_center>0 0 0</mass_center><inertia>0.01 0.01 0.01 0 0 0</inertia></Body>
+<SliderJoint name="joint"><socket_parent_frame>/ground</socket_parent_frame>
+<socket_child_frame>/body</socket_child_frame>
+<coordinates><Coordinate name="height"><range>-0.1 0.1</range></Coordinate></coordinates></SliderJoint>
+<Station name="mark"><socket_parent_frame>/body</socket_parent_frame><location>0 0 0</location></Station>
+<PhysicalOffsetFrame name="hook"><socket_parent>/ground</socket_parent>
+<translation>0 0.3 0</translation></PhysicalOffsetFrame>
+</components>
+<Ground name="ground"/>
+<ForceSet name="forceset"><objects>
+<Thelen2003Muscle name="muscle">{path_xml}<max_isometric_force>10</max_isometric_force>
+<optimal_fiber_length>0.2</optimal_fiber_length><tendon_slack_length>0.1</tendon_slack_length></Thelen2003Muscle>
+</objects></ForceSet>
+</Model>
+</OpenSimDocument>
+"""
+
+
+def test_bodies_and_joints_in_the_components_list_convert(tmp_path):
+    src = tmp_path / "hanging.osim"
+    src.write_text(_components_model())
+    conv = convert(src, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert m.body("body").id > 0 and m.joint("height").type == mujoco.mjtJoint.mjJNT_SLIDE
+    assert m.actuator("muscle").id >= 0
+    # the station is a generic component: listed as skipped, not silently dropped; the frame is
+    # used (the muscle's origin), not skipped
+    assert any(s.name == "mark" and "generic components" in s.reason for s in conv.report.skipped)
+    assert not any(s.name == "hook" for s in conv.report.skipped)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    assert d.ten_length[m.tendon("muscle").id] == pytest.approx(0.3, abs=1e-12)  # from the frame 0.3 m up
+
+
+def test_a_muscle_on_another_path_type_names_it(tmp_path):
+    src = tmp_path / "fbp.osim"
+    src.write_text(_components_model("<FunctionBasedPath name=\"path\"/>"))
+    with pytest.raises(UnsupportedElementError, match=r"line 15: <Thelen2003Muscle name=\"muscle\"> has a "
+                                                      r"<FunctionBasedPath>, a path o2m cannot convert"):
+        convert(src, tmp_path / "out", convert_options())
+
+
+def _reversed_model(path, kind: str) -> str:
+    """ground -pin1-> rod1, then a ``kind`` joint whose parent is rod2 and child rod1: OpenSim
+    reverses it (rod2 hangs from rod1). Offsets and orientations on both sides."""
+    m = osim.Model()
+    m.setName(f"reversed_{kind}")
+    rod1 = osim.Body("rod1", 1.0, osim.Vec3(0, -0.2, 0), osim.Inertia(0.01, 0.002, 0.01))
+    rod2 = osim.Body("rod2", 0.7, osim.Vec3(0.02, -0.1, 0), osim.Inertia(0.004, 0.001, 0.005))
+    m.addBody(rod1)
+    m.addBody(rod2)
+    m.addJoint(osim.PinJoint("pin1", m.getGround(), osim.Vec3(0), osim.Vec3(0), rod1, osim.Vec3(0, 0.5, 0),
+                             osim.Vec3(0)))
+    joint_type = {"pin": osim.PinJoint, "slider": osim.SliderJoint, "free": osim.FreeJoint}[kind]
+    j = joint_type("j2", rod2, osim.Vec3(0.05, 0.4, -0.02), osim.Vec3(0.2, -0.1, 0.3), rod1,
+                   osim.Vec3(0.01, -0.3, 0.02), osim.Vec3(-0.3, 0.4, 0.1))
+    m.addJoint(j)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return str(path)
+
+
+@pytest.mark.parametrize("kind", ["pin", "slider"])
+def test_a_joint_opensim_reverses_converts_exactly(tmp_path, kind):
+    path = _reversed_model(tmp_path / f"{kind}.osim", kind)
+    conv = convert(path, tmp_path / "out", convert_options())
+    assert any("joint 'j2' reversed" in n for n in conv.report.notes)
+    rep = compare_kinematics(path, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+
+
+def test_a_reversed_joint_moving_rotations_and_translations_is_refused(tmp_path):
+    path = _reversed_model(tmp_path / "free.osim", "free")
+    with pytest.raises(UnsupportedElementError, match=r"<FreeJoint name=\"j2\"> is reversed \(its child 'rod1' is "
+                                                      r"nearer ground than its parent 'rod2'\)"):
+        convert(path, tmp_path / "out", convert_options())
+
+
+def test_path_forces_o2m_does_not_convert_are_listed_as_skipped(tmp_path):
+    """A force with a path that is not one o2m converts (ClutchedPathSpring, McKibbenActuator) is
+    left out with its reason in the report, not dropped without a word."""
+    m = osim.Model()
+    m.setName("path_forces")
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+    m.addBody(b)
+    m.addJoint(osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0)))
+    forces = [osim.ClutchedPathSpring("clutch", 100.0, 1.0, 0.1, 0.0), osim.McKibbenActuator("mck", 0.01, 10.0)]
+    for f in forces:
+        f.updGeometryPath().appendNewPathPoint("p1", m.getGround(), osim.Vec3(0, 0, 0))
+        f.updGeometryPath().appendNewPathPoint("p2", b, osim.Vec3(0, 0.1, 0))
+        m.addForce(f)
+    m.finalizeConnections()
+    m.printToXML(str(tmp_path / "path_forces.osim"))
+    conv = convert(tmp_path / "path_forces.osim", tmp_path / "out", convert_options())
+    skipped = {(s.element, s.name): s.reason for s in conv.report.skipped}
+    why = "this force is not converted yet (its path too: no tendon, no force)"
+    assert skipped.get(("ClutchedPathSpring", "clutch")) == why and skipped.get(("McKibbenActuator", "mck")) == why
+
+
+def test_a_blankevoort_ligament_pulls_as_in_opensim(tmp_path):
+    """Blankevoort1991Ligament: a spring on its tendon with OpenSim's toe region and linear part."""
+    m = osim.Model()
+    m.setName("blankevoort")
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+    m.addBody(b)
+    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0, 0, 1.5708), b, osim.Vec3(0),
+                             osim.Vec3(0, 0, 1.5708))  # slides along ground Y
+    joint.upd_coordinates(0).setName("y")
+    joint.upd_coordinates(0).setRangeMin(-0.05)
+    joint.upd_coordinates(0).setRangeMax(0.1)
+    m.addJoint(joint)
+    lig = osim.Blankevoort1991Ligament("lig", m.getGround(), osim.Vec3(0, -0.2, 0), b, osim.Vec3(0, 0, 0))
+    lig.set_slack_length(0.2)
+    lig.set_linear_stiffness(800.0)
+    lig.set_transition_strain(0.1)
+    m.addForce(lig)
+    m.finalizeConnections()
+    path = tmp_path / "blankevoort.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options())
+    recorded = next(a.max_error for a in conv.report.approximations if a.element == "Blankevoort1991Ligament")
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(mj)
+    m = osim.Model(str(path))
+    state = m.initSystem()
+    lig = osim.Blankevoort1991Ligament.safeDownCast(m.getForceSet().get("lig"))
+    ys = np.linspace(-0.05, 0.1, 31)
+    ours, theirs = [], []
+    for y in ys:
+        m.getCoordinateSet().get("y").setValue(state, float(y))
+        m.realizeVelocity(state)
+        theirs.append(lig.getSpringForce(state))
+        d.qpos[mj.joint("y").qposadr[0]] = y
+        mujoco.mj_forward(mj, d)
+        ours.append(-d.qfrc_passive[mj.joint("y").dofadr[0]])  # the ligament pulls the body down: -Y
+    theirs, ours = np.array(theirs), np.array(ours)
+    assert theirs.max() > 300.0 and theirs[ys < 0].max() == 0.0  # stretched up to 50 %, slack below
+    # the dead band and polynomial fit: within 2 % of the largest force (a spring without the toe
+    # region would be 40 N, 11 % off), and no worse than the report says
+    worst = np.abs(ours - theirs).max()
+    assert worst < 0.02 * theirs.max(), np.c_[ys, theirs, ours]
+    assert worst < recorded * 1.05 + 1e-6, (worst, recorded)
+
+
+def test_a_spring_generalized_force_is_its_joints_spring_and_damper(tmp_path):
+    m = osim.Model()
+    m.setName("spring_generalized")
+    m.setGravity(osim.Vec3(0))
+    b = osim.Body("b", 2.0, osim.Vec3(0), osim.Inertia(0.1))
+    m.addBody(b)
+    j = osim.PinJoint("p", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
+    j.upd_coordinates(0).setName("q")
+    m.addJoint(j)
+    f = osim.SpringGeneralizedForce("q")
+    f.setName("spring")
+    f.setStiffness(3.0)
+    f.setRestLength(0.2)
+    f.setViscosity(0.5)
+    m.addForce(f)
+    m.finalizeConnections()
+    path = tmp_path / "spring.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options())
+    assert not any(s.name == "spring" for s in conv.report.skipped)
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(mj)
+    m = osim.Model(str(path))
+    state = m.initSystem()
+    c = m.getCoordinateSet().get("q")
+    for q, u in [(0.0, 0.0), (0.5, 0.0), (-0.4, 2.0)]:
+        c.setValue(state, q)
+        c.setSpeedValue(state, u)
+        m.realizeAcceleration(state)
+        theirs = c.getAccelerationValue(state) * 0.1  # the only force on a 0.1 kg m² body
+        d.qpos[:], d.qvel[:] = q, u
+        mujoco.mj_forward(mj, d)
+        assert d.qfrc_passive[0] == pytest.approx(theirs, abs=1e-9), (q, u)
+
+
+def _bushed(path, kind: str, mx: str = "10*theta_x") -> str:
+    """A body on a PinJoint about Z held by a bushing (frames offset and turned on both sides):
+    a BushingForce, or the ExpressionBasedBushingForce of the same stiffness and damping."""
+    m = osim.Model()
+    m.setName("bushed")
+    b = osim.Body("b", 1.0, osim.Vec3(0, -0.2, 0), osim.Inertia(0.1, 0.2, 0.3))
+    m.addBody(b)
+    m.addJoint(osim.PinJoint("p", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0)))
+    x1, x2 = ((0.1, 0, 0), (0.2, 0, 0)), ((0, 0.1, 0), (0, 0, 0.3))
+    if kind == "BushingForce":
+        def tf(p, o):
+            r = osim.Rotation()
+            r.setRotationToBodyFixedXYZ(osim.Vec3(*o))
+            return osim.Transform(r, osim.Vec3(*p))
+        f = osim.BushingForce("bush", m.getGround(), tf(*x1), b, tf(*x2), osim.Vec3(100, 200, 300),
+                              osim.Vec3(10, 20, 30), osim.Vec3(4, 5, 6), osim.Vec3(1, 2, 3))
+    else:
+        f = osim.ExpressionBasedBushingForce("bush", m.getGround(), osim.Vec3(*x1[0]), osim.Vec3(*x1[1]), b,
+                                             osim.Vec3(*x2[0]), osim.Vec3(*x2[1]))
+        for setter, text in (("setMxExpression", mx), ("setMyExpression", "20*theta_y"),
+                             ("setMzExpression", "theta_z*30"), ("setFxExpression", "100*delta_x"),
+                             ("setFyExpression", "200*delta_y"), ("setFzExpression", "300*delta_z")):
+            getattr(f, setter)(text)
+        f.set_rotational_damping(osim.Vec3(1, 2, 3))
+        f.set_translational_damping(osim.Vec3(4, 5, 6))
+    m.addForce(f)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return str(path)
+
+
+def test_a_linear_expression_bushing_converts_as_its_bushing_force(tmp_path):
+    """OpenSim gives the two the same forces; o2m gives them the same MuJoCo model."""
+    ours = convert(_bushed(tmp_path / "ebbf.osim", "ExpressionBasedBushingForce"), tmp_path / "a", convert_options())
+    theirs = convert(_bushed(tmp_path / "bf.osim", "BushingForce"), tmp_path / "b", convert_options())
+    assert ours.xml.read_text() == theirs.xml.read_text()
+    assert any(a.element == "ExpressionBasedBushingForce" for a in ours.report.approximations)
+    assert not any(s.element == "ExpressionBasedBushingForce" for s in ours.report.skipped)
+
+
+def test_a_coupled_expression_bushing_is_skipped_with_the_reason(tmp_path):
+    path = _bushed(tmp_path / "ebbf.osim", "ExpressionBasedBushingForce", mx="10*theta_x + 3*theta_y")
+    conv = convert(path, tmp_path / "out", convert_options())
+    why = next(s.reason for s in conv.report.skipped if s.element == "ExpressionBasedBushingForce")
+    assert why.startswith("<Mx_expression> '10*theta_x+3*theta_y' is not a constant times theta_x")
