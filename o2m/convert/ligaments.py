@@ -44,12 +44,17 @@ DEFAULT_LIGAMENT_CURVE = (
     '<y>0 0 0 0 0.035 0.12 0.26 0.55 1.17 2 2 2 2</y></SimmSpline>')
 
 
-def convert_ligament(ctx: _Context, el: etree._Element) -> None:
-    """Ligament -> a spring on the spatial tendon of its path (fitted after the model compiles)."""
-    b = ctx.builder
+def _path_tendon(ctx: _Context, el: etree._Element) -> str:
+    """The name of ``el``'s spatial tendon (its own name); an error where its path was not converted."""
     name = el.get("name")
     if name not in [t.name for t in ctx.spec.tendons]:
-        raise b.doc.error(el, "has no MuJoCo tendon (its GeometryPath was not converted)")
+        raise ctx.builder.doc.error(el, "has no MuJoCo tendon (its GeometryPath was not converted)")
+    return name
+
+
+def convert_ligament(ctx: _Context, el: etree._Element) -> None:
+    """Ligament -> a spring on the spatial tendon of its path (fitted after the model compiles)."""
+    b, name = ctx.builder, _path_tendon(ctx, el)
     rest = _number(el, "resting_length", 0.0, ctx)
     if not rest > 0.0:
         raise b.doc.error(el, f"has resting_length {rest:g}; OpenSim needs it positive")
@@ -85,10 +90,7 @@ class BlankevoortCurve(Function):
 
 def convert_blankevoort(ctx: _Context, el: etree._Element) -> None:
     """Blankevoort1991Ligament -> a spring on the spatial tendon of its path, as a Ligament."""
-    b = ctx.builder
-    name = el.get("name")
-    if name not in [t.name for t in ctx.spec.tendons]:
-        raise b.doc.error(el, "has no MuJoCo tendon (its GeometryPath was not converted)")
+    b, name = ctx.builder, _path_tendon(ctx, el)
     slack = _number(el, "slack_length", 0.0, ctx)
     if not slack > 0.0:  # OpenSim divides by it: the strain is infinite
         raise b.doc.error(el, f"has slack_length {slack:g}; its strain needs it positive")
