@@ -45,9 +45,9 @@ from o2m.convert.force_context import (
     LimitForce,
     SideFit,
     _Context,
+    _coordinate,
     _isolated,
     _number,
-    _text,
 )
 from o2m.convert.records import Approximation
 from o2m.osim import runtime
@@ -170,7 +170,7 @@ def convert_coordinate_limit_force(ctx: _Context, el: etree._Element) -> None:
     """CoordinateLimitForce -> joint spring, fixed dead-band tendons and joint damping."""
     b = ctx.builder
     name = el.get("name")
-    cname = _text(el, "coordinate")
+    cname = _coordinate(ctx, el)
     if cname not in b.skel.coordinates:
         raise b.doc.error(el, f"limits coordinate '{cname}', which no joint defines")
     if cname not in b.coord_joint or b.skel.coordinates[cname].locked:
