@@ -51,6 +51,7 @@ from o2m.convert.force_context import (
 )
 from o2m.convert.records import Approximation
 from o2m.osim import runtime
+from o2m.osim.names import opensim_coordinate
 from o2m.osim.skeleton import Skeleton, Skipped
 
 __all__ = ["convert_coordinate_limit_force", "fit_deadband", "measure_limit_forces", "motion_type"]
@@ -256,7 +257,7 @@ def _opensim_limit_torques(osim: Path, forces: list[LimitForce]) -> dict[str, np
     out = {}
     for f in forces:
         clf = opensim.CoordinateLimitForce.safeDownCast(model.getForceSet().get(f.name))
-        coord = model.getCoordinateSet().get(f.coordinate)
+        coord = opensim_coordinate(model, f.coordinate)
         vals = np.empty((N_GRID, len(SPEEDS)))
         for i, q in enumerate(np.linspace(*f.grid, N_GRID)):
             for k, v in enumerate(SPEEDS):

@@ -58,3 +58,13 @@ def opensim_coordinate_names(os_model) -> dict[str, str]:
     coords = [cs.get(i) for i in range(cs.getSize())]
     names = CoordinateNames((c.getJoint().getName(), c.getName()) for c in coords)
     return {c.getAbsolutePathString(): names(c.getJoint().getName(), c.getName()) for c in coords}
+
+
+def opensim_coordinate(os_model, name: str):
+    """The coordinate of a loaded OpenSim model whose MuJoCo joint name is ``name`` (KeyError if none)."""
+    table = opensim_coordinate_names(os_model)
+    cs = os_model.getCoordinateSet()
+    for i in range(cs.getSize()):
+        if table[cs.get(i).getAbsolutePathString()] == name:
+            return cs.get(i)
+    raise KeyError(f"no coordinate of {os_model.getName()} is MuJoCo joint {name!r}")
