@@ -7,6 +7,7 @@ import mujoco
 import numpy as np
 import opensim as osim
 import pytest
+from lxml import etree
 
 from o2m import compare_kinematics
 from o2m.convert.converter import convert
@@ -17,11 +18,19 @@ from o2m.validate.muscles import compare_muscles
 from o2m.viz.motion import load_motion
 from tests.helpers import convert_options
 
+_MOVING = """<MovingPathPoint name="moving"><socket_parent_frame>/bodyset/link2</socket_parent_frame>
+<socket_x_coordinate>/jointset/j2/rz</socket_x_coordinate><socket_y_coordinate>/jointset/j2/rz</socket_y_coordinate>
+<socket_z_coordinate>/jointset/j2/rz</socket_z_coordinate>
+<x_location><LinearFunction><coefficients>0.05 -0.04</coefficients></LinearFunction></x_location>
+<y_location><Constant><value>-0.15</value></Constant></y_location>
+<z_location><Constant><value>0</value></Constant></z_location></MovingPathPoint>"""
+
 
 def _chain(path) -> str:
     """Three links on PinJoints j1-j3, each coordinate named ``rz``, a fourth on a slider with a
-    unique name; a muscle from ground to the tip, and a CoordinateActuator and CoordinateLimitForce
-    naming ``rz`` (OpenSim takes the first coordinate of that name, j1's)."""
+    unique name; a muscle from ground to the tip, another through a point moving with j2's ``rz``,
+    and a CoordinateActuator and CoordinateLimitForce naming ``rz`` (OpenSim takes the first
+    coordinate of that name, j1's)."""
     m = osim.Model()
     m.setName("shared_rz")
     prev = m.getGround()
@@ -48,6 +57,10 @@ def _chain(path) -> str:
     mus.addNewPathPoint("via", m.getBodySet().get("link2"), osim.Vec3(0.04, -0.1, 0))
     mus.addNewPathPoint("insertion", tip, osim.Vec3(0.03, 0.0, 0))
     m.addForce(mus)
+    mover = osim.Thelen2003Muscle("mover", 100.0, 0.2, 0.2, 0.0)
+    mover.addNewPathPoint("origin", m.getGround(), osim.Vec3(-0.05, -0.1, 0))
+    mover.addNewPathPoint("insertion", tip, osim.Vec3(-0.03, 0.0, 0))
+    m.addForce(mover)
     act = osim.CoordinateActuator("rz")
     act.setName("motor")
     act.setOptimalForce(7.0)
@@ -55,6 +68,11 @@ def _chain(path) -> str:
     m.addForce(osim.CoordinateLimitForce("rz", 30.0, 5.0, -30.0, 5.0, 0.5, 5.0))
     m.finalizeConnections()
     m.printToXML(str(path))
+    # a MovingPathPoint whose sockets name the coordinate by path, /jointset/j2/rz (as 4.x writes it)
+    doc = etree.parse(str(path))
+    points = doc.find(".//Thelen2003Muscle[@name='mover']//PathPointSet/objects")
+    points.insert(1, etree.fromstring(_MOVING))
+    doc.write(str(path))
     return str(path)
 
 
@@ -63,7 +81,7 @@ def test_shared_names_become_joint_prefixed_and_validate(tmp_path):
     conv = convert(src, tmp_path / "out", convert_options())
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
     names = [m.joint(i).name for i in range(m.njnt)]
-    assert names == ["j1_rz", "j2_rz", "j3_rz", "reach"]  # the unique name is kept
+    assert names[:4] == ["j1_rz", "j2_rz", "j3_rz", "reach"]  # the unique name is kept
     assert m.actuator("motor").trnid[0] == m.joint("j1_rz").id  # OpenSim's CoordinateActuator takes j1's
     assert m.jnt_range[m.joint("j3_rz").id][1] == pytest.approx(1.2)
     assert m.dof_damping[m.joint("j1_rz").dofadr[0]] > 0.0  # the limit force's damping: on j1 only
@@ -76,6 +94,8 @@ def test_shared_names_become_joint_prefixed_and_validate(tmp_path):
     mus = compare_muscles(src, conv.xml, n_poses=20, ma_poses=5)
     assert mus.max_len_error < 1e-9
     assert set(mus.muscles["mus"].moment_arms) >= {"j1_rz", "j2_rz"}
+    eq = m.equality("mover-moving_x_from_j2_rz")  # the moving point follows j2's coordinate
+    assert m.joint(int(eq.obj2id[0])).name == "j2_rz"
 
     # the renamed joints carry their own coordinate's value, in OpenSim and in a replayed motion
     pair = ModelPair(src, conv.xml)
