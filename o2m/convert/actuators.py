@@ -26,6 +26,7 @@ from o2m.convert.force_context import (
     ForceConversion,
     PoseDrift,
     _Context,
+    _coordinate,
     _flag,
     _number,
     _random_values,
@@ -88,7 +89,7 @@ def _add_actuator(ctx: _Context, el: etree._Element, gear: np.ndarray, **target)
 def convert_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
     """CoordinateActuator -> a motor on the coordinate's joint, gear = optimal_force."""
     b = ctx.builder
-    cname = _text(el, "coordinate")
+    cname = _coordinate(ctx, el)
     if cname not in b.skel.coordinates:
         raise b.doc.error(el, f"actuates coordinate '{cname}', which no joint defines")
     if cname not in b.coord_joint or b.skel.coordinates[cname].locked:

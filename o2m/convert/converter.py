@@ -142,9 +142,12 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
     skel = read_skeleton(doc)
     builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics, shortcuts=options.chain_shortcuts)
     result = builder.build()
+    result.notes += [f"coordinate '{c}' of joint '{j}' is MuJoCo joint '{n}' (another joint has a coordinate "
+                     f"'{c}'; MuJoCo names are unique)" for j, c, n in skel.names.renamed()]
     add_constraints(builder)
     massless = check_massless(skel, builder, osim)
     reader = SkeletonReader(doc)
+    reader.names = skel.names
     paths = read_paths(reader, builder.ref)
     wraps = read_wrap_objects(reader)
     narrow_wrap_ranges(builder, paths, wraps, str(osim))

@@ -25,7 +25,7 @@ import numpy as np
 from lxml import etree
 
 from o2m.convert.bushings import convert_bushing_gains
-from o2m.convert.force_context import JointSpring, _Context, _number, _text, _vector
+from o2m.convert.force_context import JointSpring, _Context, _coordinate, _number, _text, _vector
 from o2m.convert.limit_forces import set_joint_passive
 from o2m.osim.skeleton import Skipped
 
@@ -90,7 +90,7 @@ def _own_joint(ctx: _Context, el: etree._Element, coord: str) -> bool:
 
 def convert_spring_generalized_force(ctx: _Context, el: etree._Element) -> None:
     """SpringGeneralizedForce -> its coordinate's joint spring and damping (see the module)."""
-    coord = _text(el, "coordinate")
+    coord = _coordinate(ctx, el)
     if not _own_joint(ctx, el, coord):
         return
     k, rest, c = (_number(el, prop, 0.0, ctx) for prop in ("stiffness", "rest_length", "viscosity"))
@@ -105,7 +105,7 @@ def convert_expression_force(ctx: _Context, el: etree._Element) -> None:
     """ExpressionBasedCoordinateForce -> its coordinate's joint spring and damping (see the module)."""
     b = ctx.builder
     name = el.get("name")
-    coord, text = _text(el, "coordinate"), _text(el, "expression")
+    coord, text = _coordinate(ctx, el), _text(el, "expression")
     if not _own_joint(ctx, el, coord):
         return
     lo, hi = b.fit_range(coord, b.coord_joint[coord][1].kind)

@@ -299,6 +299,11 @@ def _text(el: etree._Element, prop: str) -> str:
     return (el.findtext(prop) or "").strip()
 
 
+def _coordinate(ctx: _Context, el: etree._Element) -> str:
+    """The MuJoCo name of the coordinate ``el``'s <coordinate> names (bare name or path)."""
+    return ctx.builder.skel.names.resolve(_text(el, "coordinate"))
+
+
 def _flag(el: etree._Element, prop: str, default: bool) -> bool:
     t = _text(el, prop).lower()
     return default if not t else t in ("true", "1")

@@ -50,6 +50,7 @@ from o2m.convert.wraps import segment_distance as _segment_distance
 from o2m.convert.wraps import wrap_segments
 from o2m.osim import runtime
 from o2m.osim.functions import PolynomialFunction
+from o2m.osim.names import opensim_coordinate
 from o2m.osim.paths import Path, PathPoint, WrapObject
 from o2m.osim.spikes import one_pose_spikes, outlying_changes
 from o2m.transforms import Transform
@@ -162,7 +163,7 @@ def designed_correction(model, state, via: LengthVia) -> float:
     (m): the designed length of the segment minus OpenSim's."""
     gp = runtime.geometry_path(model, via.path)
     length, local = segment(model, gp, state, via.points[0], via.points[1], via.body)
-    q = model.getCoordinateSet().get(via.coordinate).getValue(state)
+    q = opensim_coordinate(model, via.coordinate).getValue(state)
     v = np.vander(np.array([q]), 5)[0] @ np.asarray(via.coefficients, dtype=float)
     p1 = np.asarray(via.p1, dtype=float)
     return float(np.linalg.norm(v - p1) + np.linalg.norm(local[-1] - v)) - length
@@ -173,7 +174,7 @@ def _sweep(osim_path: str, path: Path, seg: int, cname: str, qs: np.ndarray) -> 
     computeMomentArm about ``cname``, the second point in the first point's body frame, and the
     points of the current path between the two (first point's body frame)."""
     model, state = runtime.load_model(osim_path, 1e-12)
-    coord = model.getCoordinateSet().get(cname)
+    coord = opensim_coordinate(model, cname)
     gp = runtime.geometry_path(model, path.owner)
     a, b = path.points[seg], path.points[seg + 1]
     total, part, arm, p2, bulge = [], [], [], [], []

@@ -45,12 +45,13 @@ from o2m.convert.force_context import (
     LimitForce,
     SideFit,
     _Context,
+    _coordinate,
     _isolated,
     _number,
-    _text,
 )
 from o2m.convert.records import Approximation
 from o2m.osim import runtime
+from o2m.osim.names import opensim_coordinate
 from o2m.osim.skeleton import Skeleton, Skipped
 
 __all__ = ["convert_coordinate_limit_force", "fit_deadband", "measure_limit_forces", "motion_type"]
@@ -170,7 +171,7 @@ def convert_coordinate_limit_force(ctx: _Context, el: etree._Element) -> None:
     """CoordinateLimitForce -> joint spring, fixed dead-band tendons and joint damping."""
     b = ctx.builder
     name = el.get("name")
-    cname = _text(el, "coordinate")
+    cname = _coordinate(ctx, el)
     if cname not in b.skel.coordinates:
         raise b.doc.error(el, f"limits coordinate '{cname}', which no joint defines")
     if cname not in b.coord_joint or b.skel.coordinates[cname].locked:
@@ -256,7 +257,7 @@ def _opensim_limit_torques(osim: Path, forces: list[LimitForce]) -> dict[str, np
     out = {}
     for f in forces:
         clf = opensim.CoordinateLimitForce.safeDownCast(model.getForceSet().get(f.name))
-        coord = model.getCoordinateSet().get(f.coordinate)
+        coord = opensim_coordinate(model, f.coordinate)
         vals = np.empty((N_GRID, len(SPEEDS)))
         for i, q in enumerate(np.linspace(*f.grid, N_GRID)):
             for k, v in enumerate(SPEEDS):

@@ -24,6 +24,7 @@ from o2m.convert.muscle_types import _activation_times, _force_velocity, _prop
 from o2m.errors import ModelFileError
 from o2m.osim import runtime
 from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
+from o2m.osim.names import opensim_coordinate_names
 
 __all__ = ["FV_FIT_RANGE", "N_EVAL", "MuscleSample", "measure_muscles", "sample_lengths"]
 
@@ -88,7 +89,8 @@ class _PoseModel:
         cs = self.model.getCoordinateSet()
         coords = [cs.get(i) for i in range(cs.getSize())]
         self.indep = [c for c in coords if not c.getLocked(s) and not c.isDependent(s)]
-        self.indep_names = [c.getName() for c in self.indep]
+        mj_names = opensim_coordinate_names(self.model)
+        self.indep_names = [mj_names[c.getAbsolutePathString()] for c in self.indep]
         self.bounds = np.array([runtime.sample_bounds(c) for c in self.indep], dtype=float).reshape(-1, 2)
         self.defaults = np.array([c.getValue(s) for c in self.indep], dtype=float)
         ms = self.model.getMuscles()

@@ -19,6 +19,7 @@ from o2m.errors import MissingJointError
 from o2m.mj.posing import joint_equality_plan, joint_qpos_address, load_mjcf
 from o2m.mj.tendons import mujoco_tendon_lengths
 from o2m.osim import runtime
+from o2m.osim.names import opensim_coordinate_names
 
 __all__ = ["ModelPair", "is_actuator", "path_forces"]
 
@@ -55,14 +56,15 @@ class ModelPair:
         self.plan = joint_equality_plan(self.mj_model)
         self.opensim = opensim
 
+        self.mj_names = opensim_coordinate_names(self.os_model)
         cs = self.os_model.getCoordinateSet()
         self.coords = [cs.get(i) for i in range(cs.getSize())]
         st = self.init_state
-        self.locked = [c.getName() for c in self.coords if c.getLocked(st)]
-        self.dependent = [c.getName() for c in self.coords if not c.getLocked(st) and c.isDependent(st)]
+        self.locked = [self.name(c) for c in self.coords if c.getLocked(st)]
+        self.dependent = [self.name(c) for c in self.coords if not c.getLocked(st) and c.isDependent(st)]
         skip = set(self.locked) | set(self.dependent)
-        self.indep = [c for c in self.coords if c.getName() not in skip]
-        self.indep_names = [c.getName() for c in self.indep]
+        self.indep = [c for c in self.coords if self.name(c) not in skip]
+        self.indep_names = [self.name(c) for c in self.indep]
         missing = []
         for name in self.indep_names:
             try:
@@ -71,7 +73,7 @@ class ModelPair:
                 missing.append(name)
         if missing:
             raise MissingJointError(missing, self.mjcf_path)
-        self.defaults = {c.getName(): float(c.getValue(st)) for c in self.indep}
+        self.defaults = {self.name(c): float(c.getValue(st)) for c in self.indep}
 
         self.forces = path_forces(self.os_model)
         m = self.mj_model
@@ -87,6 +89,10 @@ class ModelPair:
         self._spans: dict[str, set[str]] | None = None
 
     # -- OpenSim ------------------------------------------------------------------------
+    def name(self, c: Any) -> str:
+        """The MuJoCo joint name of OpenSim coordinate ``c`` (see :mod:`o2m.osim.names`)."""
+        return self.mj_names[c.getAbsolutePathString()]
+
     def os_state(self, values: Mapping[str, float] | None, assemble: bool = True) -> Any:
         """A realised OpenSim state: init_state when ``values`` is None, else a copy with the
         given independent coordinates set and assembled (when ``assemble``, or when some
@@ -95,9 +101,9 @@ class ModelPair:
             state = self.init_state
         else:
             state = self.opensim.State(self.init_state)
-            for c in self.indep:
-                if c.getName() in values:
-                    c.setValue(state, float(values[c.getName()]), False)
+            for c, n in zip(self.indep, self.indep_names, strict=True):
+                if n in values:
+                    c.setValue(state, float(values[n]), False)
             if assemble or self.dependent:
                 # a fresh assembly solver: where one assembly fails, OpenSim's Model::assemble
                 # relaxes the constraints (weight 20) for good, after which an assembled
@@ -109,14 +115,14 @@ class ModelPair:
         return state
 
     def os_indep_values(self, state: Any) -> dict[str, float]:
-        return {c.getName(): float(c.getValue(state)) for c in self.indep}
+        return {n: float(c.getValue(state)) for c, n in zip(self.indep, self.indep_names, strict=True)}
 
     def os_lengths(self, state: Any) -> np.ndarray:
         return np.array([obj.getLength(state) for _, _, obj in self.matched], dtype=float)
 
     def coord(self, name: str) -> Any:
         for c in self.indep:
-            if c.getName() == name:
+            if self.name(c) == name:
                 return c
         raise KeyError(f"{name!r} is not an independent OpenSim coordinate of {self.osim_path}")
 
@@ -137,18 +143,18 @@ class ModelPair:
         out: dict[str, set[str]] = {d: set() for d in self.dependent}
         if not self.dependent:
             return out
-        dep = [c for c in self.coords if c.getName() in out]
-        ref = {c.getName(): float(c.getValue(self.init_state)) for c in dep}
+        dep = [c for c in self.coords if self.name(c) in out]
+        ref = {self.name(c): float(c.getValue(self.init_state)) for c in dep}
         for c in self.indep:
             lo, hi = runtime.sample_bounds(c)
             for frac in (0.2, 0.8):
                 try:
-                    st = self.os_state({c.getName(): lo + frac * (hi - lo)})
+                    st = self.os_state({self.name(c): lo + frac * (hi - lo)})
                 except Exception:
                     continue
                 for d in dep:
-                    if abs(float(d.getValue(st)) - ref[d.getName()]) > 1e-10:
-                        out[d.getName()].add(c.getName())
+                    if abs(float(d.getValue(st)) - ref[self.name(d)]) > 1e-10:
+                        out[self.name(d)].add(self.name(c))
         return out
 
     def spanned(self) -> dict[str, set[str]]:
@@ -181,7 +187,7 @@ class ModelPair:
         joint_coords: dict[str, list[str]] = {}
         for i in range(js.getSize()):
             j = js.get(i)
-            joint_coords[j.getName()] = [j.get_coordinates(k).getName() for k in range(j.numCoordinates())]
+            joint_coords[j.getName()] = [self.name(j.get_coordinates(k)) for k in range(j.numCoordinates())]
         drivers = self.dependent_drivers()
         indep = set(self.indep_names)
 
@@ -212,13 +218,13 @@ class ModelPair:
                                      (mp.hasZCoordinate, mp.getZCoordinate)):
                         try:
                             if has():
-                                coords.add(get().getName())
+                                coords.add(self.name(get()))
                         except Exception:
                             pass
                 cp = opensim.ConditionalPathPoint.safeDownCast(p)
                 if cp is not None:
                     try:
-                        coords.add(cp.getCoordinate().getName())
+                        coords.add(self.name(cp.getCoordinate()))
                     except Exception:
                         pass
             ws = gp.getWrapSet()

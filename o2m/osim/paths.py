@@ -88,7 +88,7 @@ class Path:
 def _coordinate_name(reader: SkeletonReader, socket: etree._Element | None) -> str | None:
     if socket is None or not (socket.text or "").strip():
         return None
-    return reader.doc.resolve(socket).get("name")
+    return reader.coordinate_of(reader.doc.resolve(socket))
 
 
 def read_point(reader: SkeletonReader, el: etree._Element, coords: dict[str, float]) -> PathPoint:

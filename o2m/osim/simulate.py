@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from o2m.osim import runtime
+from o2m.osim.names import opensim_coordinate_names
 
 __all__ = ["IntegratorSettings", "ModelOutline", "OpenSimRun", "model_outline", "read_initial_state", "run_isolated",
            "run_many", "simulate"]
@@ -148,11 +149,13 @@ def model_outline(osim_path: str | os.PathLike[str]) -> ModelOutline:
     coords = model.getCoordinateSet()
     objs = [coords.get(i) for i in range(coords.getSize())]
     rotational = osim.Coordinate.Rotational if hasattr(osim.Coordinate, "Rotational") else 1
+    mj_names = opensim_coordinate_names(model)
+    names = [mj_names[c.getAbsolutePathString()] for c in objs]  # MuJoCo joint names
     return ModelOutline(tuple(muscles.get(i).getName() for i in range(muscles.getSize())),
-                        tuple(c.getName() for c in objs), {c.getName(): float(c.getDefaultValue()) for c in objs},
-                        frozenset(c.getName() for c in objs if c.getDefaultLocked()),
-                        frozenset(c.getName() for c in objs if c.getMotionType() == rotational),
-                        {c.getName(): (float(c.getRangeMin()), float(c.getRangeMax())) for c in objs})
+                        tuple(names), {n: float(c.getDefaultValue()) for n, c in zip(names, objs, strict=True)},
+                        frozenset(n for n, c in zip(names, objs, strict=True) if c.getDefaultLocked()),
+                        frozenset(n for n, c in zip(names, objs, strict=True) if c.getMotionType() == rotational),
+                        {n: (float(c.getRangeMin()), float(c.getRangeMax())) for n, c in zip(names, objs, strict=True)})
 
 
 def read_initial_state(path: str | os.PathLike[str]) -> dict[str, float]:
@@ -230,7 +233,8 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
     model.addController(controller)
     state = model.initSystem()
     coords = model.getCoordinateSet()
-    coord_names = [coords.get(i).getName() for i in range(coords.getSize())]
+    mj_names = opensim_coordinate_names(model)
+    coord_names = [mj_names[coords.get(i).getAbsolutePathString()] for i in range(coords.getSize())]
     given: set[str] = set()
     if initial_state:
         sv_names = list(model.getStateVariableNames().to_numpy()) if hasattr(

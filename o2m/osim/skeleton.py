@@ -19,6 +19,7 @@ from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.functions import Function, parse_function
 from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, orient_joints
 from o2m.osim.kinds import BODY_CONSTRAINTS, PATH_TYPES, opensim_typenames, set_of_type
+from o2m.osim.names import CoordinateNames
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
 #: Joint types o2m converts, with the canonical axes of their coordinates in order:
@@ -185,6 +186,7 @@ class Skeleton:
     document: OsimDocument | None = None
     point_on_lines: list[PointOnLine] = field(default_factory=list)
     body_constraints: list[BodyConstraint] = field(default_factory=list)
+    names: CoordinateNames = field(default_factory=lambda: CoordinateNames([]))
 
 
 class SkeletonReader:
@@ -194,6 +196,21 @@ class SkeletonReader:
         self.doc = doc
         self.model = doc.model
         self._frames: dict[int, tuple[str, Transform, str]] = {}
+        self.names = CoordinateNames([])
+
+    def coordinate_names(self, joints: list[etree._Element]) -> CoordinateNames:
+        """The MuJoCo names of the coordinates of ``joints`` (JointSet order), see :mod:`o2m.osim.names`."""
+        owners = [(j.get("name"), c.get("name")) for j in joints for h in j.findall("coordinates")
+                  for c in h if c.tag == "Coordinate"]
+        try:
+            return CoordinateNames(owners)
+        except ValueError as exc:
+            raise self.doc.error(joints[0], str(exc)) from None
+
+    def coordinate_of(self, el: etree._Element) -> str:
+        """The MuJoCo name of the Coordinate element ``el`` (in its joint's <coordinates>)."""
+        owner = el.getparent().getparent() if el.getparent() is not None else None
+        return self.names(owner.get("name") if owner is not None else "", el.get("name"))
 
     # -- frames ------------------------------------------------------------------------
     def frame(self, el: etree._Element, _depth: int = 0) -> tuple[str, Transform, str]:
@@ -338,13 +355,15 @@ class SkeletonReader:
         parent, x_pf, _ = self.socket_frame(el, "socket_parent_frame")
         child, x_bm, _ = self.socket_frame(el, "socket_child_frame")
         names: list[str] = []
+        local: dict[str, str] = {}  # OpenSim name in this joint -> MuJoCo name
         holder = el.find("coordinates")
         for cel in holder if holder is not None else []:
             if cel.tag != "Coordinate":
                 continue
             c = self.coordinate(cel, el.get("name"))
-            if c.name in coords:
-                raise self.doc.error(cel, "is a second coordinate with this name")
+            if c.name in local:
+                raise self.doc.error(cel, "is a second coordinate with this name in its joint")
+            local[c.name] = c.name = self.names(el.get("name"), c.name)
             coords[c.name] = c
             names.append(c.name)
         rotations: list[TransformAxis] = []
@@ -370,8 +389,9 @@ class SkeletonReader:
                 if len(cnames) > 1:
                     raise self.doc.error(ta, f"depends on {len(cnames)} coordinates; o2m supports one")
                 cname = cnames[0] if cnames else None
-                if cname is not None and cname not in coords:
+                if cname is not None and cname not in local:
                     raise self.doc.error(ta, f"uses coordinate '{cname}', which its joint does not define")
+                cname = local[cname] if cname is not None else None
                 func = self.function_of(ta)
                 axobj = TransformAxis(axname, kind, axis / norm, cname, func, ta)
                 (rotations if kind == "rotation" else translations).append(axobj)
@@ -430,6 +450,7 @@ class SkeletonReader:
                 raise doc.error(el, "is a second body with this name")
             bodies[b.name] = b
         coords: dict[str, Coordinate] = {}
+        self.names = self.coordinate_names(self.set_objects("JointSet"))
         joints = orient_joints([self.joint(el, coords) for el in self.set_objects("JointSet")], doc)
         couplers: list[Coupler] = []
         point_on_lines: list[PointOnLine] = []
@@ -452,8 +473,8 @@ class SkeletonReader:
             if not enforced:
                 skipped.append(Skipped(el.tag, el.get("name", ""), "constraint is not enforced"))
                 continue
-            ind = (el.findtext("independent_coordinate_names") or "").split()
-            dep = (el.findtext("dependent_coordinate_name") or "").strip()
+            ind = [self.names.resolve(c) for c in (el.findtext("independent_coordinate_names") or "").split()]
+            dep = self.names.resolve(el.findtext("dependent_coordinate_name") or "")
             if len(ind) != 1:
                 raise doc.error(el, f"couples {len(ind)} independent coordinates; o2m supports one")
             for c in ind + [dep]:
@@ -493,7 +514,7 @@ class SkeletonReader:
         grav = self.model.find("gravity")
         gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
         return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,
-                        markers, geometry, skipped, doc, point_on_lines, body_constraints)
+                        markers, geometry, skipped, doc, point_on_lines, body_constraints, self.names)
 
 
 def _skip_reason(set_tag: str) -> str:

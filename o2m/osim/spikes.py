@@ -101,7 +101,7 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
     idx = np.asarray(list(muscles), dtype=int)
     base = pair.os_lengths(pair.os_state(values)) if lengths is None else np.asarray(lengths)
     for c in _spanned_coordinates(pair, list(idx)):
-        name = c.getName()
+        name = pair.name(c)
         h = SPIKE_LINEAR_STEP if int(c.getMotionType()) == TRANSLATIONAL else SPIKE_STEP
         up, dn = _neighbours(pair, values, name, h)
         if up is None:
@@ -117,7 +117,7 @@ def opensim_spikes(pair: ModelPair, values: Mapping[str, float], muscles: Sequen
                 out[int(i)] = _evidence(name, h, base[i], dn[i], up[i])
     banded = [int(i) for i in banded if int(i) not in out]
     for c in _spanned_coordinates(pair, banded) if banded else []:
-        name = c.getName()
+        name = pair.name(c)
         h0 = SPIKE_LINEAR_STEP if int(c.getMotionType()) == TRANSLATIONAL else SPIKE_STEP
         for h in (h0 * k for k in BAND_STEPS):
             up, dn = _neighbours(pair, values, name, h)
@@ -335,7 +335,7 @@ def _spanned_coordinates(pair: ModelPair, muscles: Sequence[int]) -> list[Any]:
     their lengths, so only these can show a spike (each costs two OpenSim assemblies)."""
     spans = pair.spanned()
     wanted = set().union(*(spans.get(pair.matched[int(i)][0], set()) for i in muscles))
-    return [c for c in pair.indep if c.getName() in wanted]
+    return [c for c in pair.indep if pair.name(c) in wanted]
 
 
 def _neighbours(pair: ModelPair, values: Mapping[str, float], name: str,

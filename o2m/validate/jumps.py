@@ -116,7 +116,7 @@ def sweep_jumps(
     spans = pair.spanned() if opensim else {}
     desc = f"sweep {os.path.basename(pair.osim_path)}"
     for c in tqdm(pair.indep, disable=not progress, desc=desc):
-        cname = c.getName()
+        cname = pair.name(c)
         qs = pair.sweep_values(c, step, linear_step)
         l_mj = np.array([pair.mj_lengths({**pair.defaults, cname: float(q)}) for q in qs]).reshape(len(qs), -1)
         l_os = np.full((len(qs), len(pair.matched)), np.nan)
@@ -205,7 +205,7 @@ def opensim_length_steps(
         return pair.os_lengths(pair.os_state({**pair.defaults, cname: float(q)}, assemble=False))
 
     for c in pair.indep:
-        cname = c.getName()
+        cname = pair.name(c)
         paths = [i for i, n in enumerate(names) if cname in spans.get(n, set())]
         if not paths:
             continue

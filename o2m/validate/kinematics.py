@@ -31,6 +31,7 @@ import numpy as np
 from o2m.errors import MissingJointError
 from o2m.mj.posing import equality_residual, joint_equality_plan, joint_qpos_address, load_mjcf, pose_mujoco
 from o2m.osim import runtime
+from o2m.osim.names import opensim_coordinate_names
 from o2m.transforms import OSIM_TO_MJ
 
 __all__ = [
@@ -309,12 +310,14 @@ def compare_kinematics(
 
     coord_set = os_model.getCoordinateSet()
     coords = [coord_set.get(i) for i in range(coord_set.getSize())]
-    all_names = [c.getName() for c in coords]
-    locked = [c.getName() for c in coords if c.getLocked(init_state)]
-    dependent = [c.getName() for c in coords if not c.getLocked(init_state) and c.isDependent(init_state)]
+    mj_names = opensim_coordinate_names(os_model)
+    all_names = [mj_names[c.getAbsolutePathString()] for c in coords]
+    locked = [n for n, c in zip(all_names, coords, strict=True) if c.getLocked(init_state)]
+    dependent = [n for n, c in zip(all_names, coords, strict=True)
+                 if not c.getLocked(init_state) and c.isDependent(init_state)]
     not_sampled = set(locked) | set(dependent)
-    indep = [c for c in coords if c.getName() not in not_sampled]
-    indep_names = [c.getName() for c in indep]
+    indep = [c for n, c in zip(all_names, coords, strict=True) if n not in not_sampled]
+    indep_names = [n for n in all_names if n not in not_sampled]
 
     missing_joints = []
     for name in indep_names:

@@ -115,7 +115,7 @@ def moment_arm_sweeps(
     out = []
     h = FD_STEP * 10
     for c in pair.indep:
-        cname = c.getName()
+        cname = pair.name(c)
         users = [i for i, nm in enumerate(names) if cname in spans.get(nm, set())]
         if not users:
             continue

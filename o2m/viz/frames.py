@@ -20,6 +20,7 @@ import numpy as np
 
 from o2m.errors import O2MError
 from o2m.osim import runtime
+from o2m.osim.names import opensim_coordinate_names
 from o2m.transforms import OSIM_TO_MJ
 
 __all__ = [
@@ -204,7 +205,8 @@ def opensim_frames(
     os_model, state = runtime.load_model(osim_path)
 
     cset = os_model.getCoordinateSet()
-    coords = {cset.get(i).getName(): cset.get(i) for i in range(cset.getSize())}
+    mj_names = opensim_coordinate_names(os_model)  # coordinates go by their MuJoCo joint names
+    coords = {mj_names[cset.get(i).getAbsolutePathString()]: cset.get(i) for i in range(cset.getSize())}
     unknown = [n for n in coordinate_names if n not in coords]
     if unknown:
         raise ViewerError(f"{osim_path}: no coordinate(s) named {', '.join(unknown)}")

@@ -83,6 +83,22 @@ def coordinate_of_column(label: str) -> str | None:
     return None
 
 
+def _column_joint(label: str, mj_model: mujoco.MjModel) -> str | None:
+    """The hinge or slide joint of ``mj_model`` a column label names, or None.
+
+    A state path ``/jointset/<joint>/<coordinate>/value`` whose coordinate name is shared by several
+    joints names MuJoCo joint ``<joint>_<coordinate>`` (:mod:`o2m.osim.names`).
+    """
+    name = coordinate_of_column(label)
+    if name is None or _joint_kind(mj_model, name) is not None:
+        return name
+    parts = [p for p in label.strip().split("/") if p]
+    if label.strip().startswith("/") and len(parts) >= 3:
+        renamed = f"{parts[-3]}_{parts[-2]}"
+        return renamed if _joint_kind(mj_model, renamed) is not None else None
+    return None
+
+
 def _joint_kind(model: mujoco.MjModel, name: str) -> int | None:
     jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
     if jid < 0 or int(model.jnt_type[jid]) not in _SCALAR:
@@ -138,8 +154,8 @@ def load_motion(path: str | os.PathLike[str], mj_model: mujoco.MjModel, *, warn:
     names: list[str] = []
     unmatched: list[str] = []
     for i, label in enumerate(table.columns):
-        name = coordinate_of_column(label)
-        if name is None or name in names or _joint_kind(mj_model, name) is None:
+        name = _column_joint(label, mj_model)
+        if name is None or name in names:
             unmatched.append(label)
             continue
         cols.append(i)

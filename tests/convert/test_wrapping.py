@@ -509,6 +509,9 @@ class _FakePair:
         self.matched = [("m", None, None)]
         self.length = length
 
+    def name(self, c):
+        return c.getName()
+
     def spanned(self):
         return {"m": {"q"}}
 
