@@ -382,7 +382,8 @@ def _equilibrium_force(m, s) -> float:
     OpenSim 4.6's deprecated fiber-length muscles compute their equilibrium in
     ``computeIsometricForce``, which leaves the force in the muscle's actuation; reading it through
     the muscle's dynamics fails where the type does not implement them (Delp1990Muscle_Deprecated:
-    "calcActiveForce() NOT IMPLEMENTED"), so the actuation is read instead there.
+    "calcActiveForce() NOT IMPLEMENTED"), so the actuation is read instead there (OpenSim raises
+    rather than give an actuation not computed on this state: NaN then).
     """
     try:
         return float(m.getTendonForce(s))

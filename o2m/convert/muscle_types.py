@@ -276,7 +276,6 @@ def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float
     return np.maximum(fv, 0.0), 1.0 / ts, notes
 
 
-
 def _function_prop(obj, name: str):
     """An OpenSim Function held in an object property, by name."""
     osim = runtime.opensim()
