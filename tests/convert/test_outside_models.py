@@ -155,6 +155,9 @@ def test_the_muscle_types_once_skipped_convert(tmp_path):
     (tmp_path / "muscle_types.osim").write_text(text)
     conv = convert(tmp_path / "muscle_types.osim", tmp_path / "out", convert_options())
     assert not any(s.element in types for s in conv.report.skipped)
+    # each mapping's approximation and its measured error are in the report's notes
+    for i, what in enumerate(("Schutte activation dynamics", "constant time constants", "rates blended by 0.5 tanh")):
+        assert any(n.startswith(f"m{i}: ") and what in n and "activation RMS error" in n for n in conv.report.notes)
     model = mujoco.MjModel.from_xml_path(str(conv.xml))
     for i in range(len(types)):
         act = model.actuator(f"m{i}")
