@@ -35,3 +35,40 @@ def test_activation_rate_laws():
     z = 0.5 + 1.5 * 0.5
     np.testing.assert_allclose(_activation_rate("tanh_blend", (0.01, 0.04, 1e4), u, a),
                                [0.5 / (0.01 * z), -0.5 * z / 0.04])
+
+
+def test_thelen_deprecated_force_velocity_is_opensims(tmp_path):
+    """Thelen2003Muscle_Deprecated's force-velocity (its calcFiberVelocity inverted): at optimal
+    fiber length and full activation, the fiber velocity OpenSim's dynamics give for a tendon
+    force F is the velocity at which the mapped curve gives F minus the passive force."""
+    import opensim
+
+    from o2m.convert.muscle_samples import _Bench, _muscle_elements
+    from o2m.convert.muscle_types import _force_velocity
+    from o2m.osim.document import load_document
+    from tests.helpers import model_file
+
+    opensim.Logger.setLevelString("error")
+    tag = "Thelen2003Muscle_Deprecated"
+    text = model_file("opensim-models/Models/Tug_of_War/Tug_of_War.osim").read_text()
+    text = text.replace("<optimal_force>1</optimal_force>", "").replace("<Thelen2003Muscle ", f"<{tag} ")
+    (tmp_path / "tug.osim").write_text(text.replace("</Thelen2003Muscle>", f"</{tag}>"))
+    doc = load_document(tmp_path / "tug.osim")
+    bench = _Bench(doc, [_muscle_elements(doc, ["muscle1"])["muscle1"]])
+    model, m, s = bench.model, bench.muscles[0], bench.state
+    lopt, lts, fmax = m.getOptimalFiberLength(), m.getTendonSlackLength(), m.getMaxIsometricForce()
+    u, f = [], []
+    for strain in np.linspace(0.01, 0.045, 8):  # tendon forces from 0.04 to 1.6 Fmax
+        bench.coords[0].setValue(s, lopt + lts * (1 + strain), False)
+        m.setActivation(s, 1.0)
+        model.setStateVariableValue(s, "/forceset/muscle1/fiber_length", lopt)
+        model.realizeVelocity(s)
+        controls = model.updControls(s)
+        m.setControls(opensim.Vector(1, 1.0), controls)
+        model.setControls(s, controls)
+        model.realizeAcceleration(s)
+        u.append(model.getStateVariableDerivativeValue(s, "/forceset/muscle1/fiber_length") / (10.0 * lopt))  # Vmax 10
+        f.append((m.getTendonForce(s) - m.getPassiveFiberForce(s)) / fmax)
+    fv, vmax, _ = _force_velocity(m, tag, np.array(u))
+    assert vmax == 10.0 and min(u) < -0.3 and max(u) > 0.1  # shortening and lengthening
+    np.testing.assert_allclose(fv, f, atol=1e-3)
