@@ -238,6 +238,7 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
     would refuse is an error naming the muscle (of ``paths``) and its line."""
     fits = fit_muscles(osim)
     elements = {p.owner: p.element for p in paths}
+    by_note: dict[str, list[str]] = {}  # the fits' notes (activation and force-velocity mappings), muscles sharing one
     for act in result.spec.actuators:
         p = fits.get(act.name)
         if p is None:
@@ -253,7 +254,17 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
             p.type, p.name, "MuJoCo muscle force-length fitted to OpenSim's tendon force (rigid tendon)",
             float(max(p.err_active_max_pct, p.err_passive_max_pct)), "% of max isometric force",
             f"active rms {p.err_active_rms_pct:.2f} %, passive rms {p.err_passive_rms_pct:.2f} %"))
+        for note in p.notes:
+            by_note.setdefault(note, []).append(p.name)
+    result.notes += [f"{_muscle_list(names)}: {note}" for note, names in by_note.items()]
     return list(fits.skipped)
+
+
+def _muscle_list(names: list[str], shown: int = 4) -> str:
+    """``names`` for a note: all of them, or the first few and how many there are."""
+    if len(names) <= shown:
+        return ", ".join(names)
+    return f"{len(names)} muscles ({', '.join(names[:shown])}, ...)"
 
 
 def _set_length_ranges(spec: mujoco.MjSpec, model: mujoco.MjModel, builder: MjcfBuilder) -> None:

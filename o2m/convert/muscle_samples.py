@@ -366,15 +366,32 @@ class _Bench:
                     ok[i] = False
             try:
                 self.model.realizeDynamics(s)
-            except Exception:
-                continue
+            except RuntimeError:  # a muscle without dynamics (see _equilibrium_force): read each as it is
+                pass
             for i, m in enumerate(self.muscles):
-                if ok[i]:
-                    f = float(m.getTendonForce(s))
-                    if math.isfinite(f):
-                        out[i, j] = f
-                        used[i, j] = float(m.getActivation(s))
+                f = _equilibrium_force(m, s) if ok[i] else math.nan
+                if math.isfinite(f):
+                    out[i, j] = f
+                    used[i, j] = float(m.getActivation(s))
         return out, used
+
+
+def _equilibrium_force(m, s) -> float:
+    """The tendon force (N) of muscle ``m`` just brought to equilibrium in state ``s``.
+
+    OpenSim 4.6's deprecated fiber-length muscles compute their equilibrium in
+    ``computeIsometricForce``, which leaves the force in the muscle's actuation; reading it through
+    the muscle's dynamics fails where the type does not implement them (Delp1990Muscle_Deprecated:
+    "calcActiveForce() NOT IMPLEMENTED"), so the actuation is read instead there (OpenSim raises
+    rather than give an actuation not computed on this state: NaN then).
+    """
+    try:
+        return float(m.getTendonForce(s))
+    except RuntimeError:
+        try:
+            return float(m.getActuation(s))
+        except RuntimeError:
+            return math.nan
 
 
 def _muscle_elements(doc, names: list[str]) -> dict[str, etree._Element]:

@@ -24,6 +24,9 @@ SUPPORTED_MUSCLES = (
     "Schutte1993Muscle_Deprecated",
     "DeGrooteFregly2016Muscle",
     "RigidTendonMuscle",
+    "Delp1990Muscle_Deprecated",
+    "Thelen2003Muscle_Deprecated",
+    "MeyerFregly2016Muscle",
 )
 
 #: MuJoCo's defaults of the ``<muscle>`` shortcut.
@@ -65,14 +68,12 @@ def _activation_times(m, type_name: str, notes: list[str]) -> tuple[float, float
     """MuJoCo (activation, deactivation) time constants for an OpenSim muscle."""
     if type_name in ("Thelen2003Muscle", "Millard2012EquilibriumMuscle", "DeGrooteFregly2016Muscle"):
         ta, td = _prop(m, "activation_time_constant"), _prop(m, "deactivation_time_constant")
-        if _bool_prop(m, "ignore_activation_dynamics"):
-            notes.append("OpenSim ignores activation dynamics (activation = excitation); MuJoCo's "
-                         "muscle filters with the muscle's time constants")
+        _note_ignored_activation(m, notes)
         return ta, td
     if type_name == "Millard2012AccelerationMuscle":
         model = _downcast(m, type_name).get_MuscleFirstOrderActivationDynamicModel()
         return _prop(model, "activation_time_constant"), _prop(model, "deactivation_time_constant")
-    if type_name == "Schutte1993Muscle_Deprecated":
+    if type_name in ("Schutte1993Muscle_Deprecated", "Delp1990Muscle_Deprecated"):
         ts, a1, a2 = _prop(m, "time_scale"), _prop(m, "activation1"), _prop(m, "activation2")
         ta, td, rms, rms_step = _schutte_time_constants(ts, a1, a2)
         notes.append(f"Schutte activation dynamics (da/dt = (u - a)(a1 u + a2)/ts rising, (u - a) a2/ts falling) "
@@ -80,27 +81,87 @@ def _activation_times(m, type_name: str, notes: list[str]) -> tuple[float, float
                      f"excitations: activation RMS error {rms:.4f} (matching a full step's rise and decay "
                      f"instead: {rms_step:.4f})")
         return ta, td
+    if type_name in ("Thelen2003Muscle_Deprecated", "MeyerFregly2016Muscle"):
+        return _other_activation_law(m, type_name, notes)
     notes.append("RigidTendonMuscle has no activation dynamics; MuJoCo's default time constants 0.01/0.04 s")
     return MUJOCO_DEFAULTS["timeconst"]
 
 
-#: Excitations the Schutte activation mapping is fitted on: slow sines as in the paper's sets, up to
+def _note_ignored_activation(m, notes: list[str]) -> None:
+    if _bool_prop(m, "ignore_activation_dynamics"):
+        notes.append("OpenSim ignores activation dynamics (activation = excitation); MuJoCo's "
+                     "muscle filters with the muscle's time constants")
+
+
+#: MeyerFregly2016Muscle's tanh steepness where its ``activation_dynamics_smoothing`` property is
+#: missing (the constant of the versions without it).
+MEYER_FREGLY_SMOOTHING = 0.1
+
+
+def _other_activation_law(m, type_name: str, notes: list[str]) -> tuple[float, float]:
+    """Time constants (s) fitted to the activation laws that are not MuJoCo's: Thelen2003Muscle_Deprecated's
+    constant time constants and MeyerFregly2016Muscle's tanh blend of the two rates."""
+    ta, td = _prop(m, "activation_time_constant"), _prop(m, "deactivation_time_constant")
+    if type_name == "Thelen2003Muscle_Deprecated":
+        law, params = "constant", (ta, td)
+        what = "constant time constants (da/dt = (u - a)/ta rising, (u - a)/td falling)"
+    else:
+        _note_ignored_activation(m, notes)
+        b = _prop(m, "activation_dynamics_smoothing", MEYER_FREGLY_SMOOTHING)
+        law, params = "tanh_blend", (ta, td, b)
+        what = (f"rates blended by 0.5 tanh({b:.3g} (u - a)) (da/dt = (u - a)[(f + 0.5)/(ta z) + (0.5 - f) z/td], "
+                "z = 0.5 + 1.5 a)")
+    t_act, t_deact, rms, rms_own = _fitted_time_constants(law, params, (ta, td))
+    notes.append(f"{type_name} activation dynamics, {what}, mapped to MuJoCo's time constants {t_act:.4g}/"
+                 f"{t_deact:.4g} s, fitted to follow it under random excitations: activation RMS error {rms:.4f} "
+                 f"(the muscle's own {ta:.4g}/{td:.4g} s instead: {rms_own:.4f})")
+    return t_act, t_deact
+
+
+#: Excitations the activation mappings are fitted on: slow sines as in the paper's sets, up to
 #: this frequency (Hz), active with probability 1.
 ACTIVATION_FIT_SETS, ACTIVATION_FIT_MAX_FREQ = 24, 3.0
 
 
-@functools.lru_cache(maxsize=16)
+def _activation_rate(law: str, params: tuple[float, ...], u: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """da/dt (1/s) of an OpenSim activation law at excitations ``u`` and activations ``a``."""
+    e = u - a
+    if law == "schutte":  # Schutte1993 / Delp1990: time_scale, activation1, activation2
+        ts, a1, a2 = params
+        return np.where(e >= 0, e * (a1 * u + a2), e * a2) / ts
+    if law == "constant":  # Thelen2003Muscle_Deprecated
+        ta, td = params
+        return np.where(e >= 0, e / ta, e / td)
+    ta, td, b = params  # tanh_blend: MeyerFregly2016Muscle
+    z, f = 0.5 + 1.5 * a, 0.5 * np.tanh(b * e)
+    return e * ((f + 0.5) / (ta * z) + (0.5 - f) * z / td)
+
+
 def _schutte_time_constants(ts: float, a1: float, a2: float) -> tuple[float, float, float, float]:
     """MuJoCo (activation, deactivation) time constants (s) that best follow Schutte's dynamics.
 
     Schutte1993's activation rises at ``(u - a)(a1 u + a2)/ts`` and falls at ``(u - a) a2/ts``: its
-    rise is fast only when the excitation is high. MuJoCo's muscle uses ``(u - a)/tau`` with
-    ``tau = tact (0.5 + 1.5 a)`` rising and ``tdeact / (0.5 + 1.5 a)`` falling. Matching a full
-    step's 0-90 % rise (the former mapping) makes MuJoCo rise about 3.6 times too fast at the
-    moderate excitations of movements; here both are integrated (Schutte at 0.1 ms, MuJoCo as it
+    rise is fast only when the excitation is high. Matching a full step's 0-90 % rise (the former
+    mapping) makes MuJoCo rise about 3.6 times too fast at the moderate excitations of movements,
+    so the constants are fitted (:func:`_fitted_time_constants`) starting from that step match.
+    Returns the two time constants, the activation RMS and that of the step-matched mapping.
+    """
+    tau_a, tau_d = ts / (a1 + a2), ts / a2
+    step = (tau_a * math.log(10) / (2 * math.log(10) - 1.35), tau_d * math.log(10) / (2 * math.log(6.5 / 2)))
+    return _fitted_time_constants("schutte", (ts, a1, a2), step)
+
+
+@functools.lru_cache(maxsize=16)
+def _fitted_time_constants(law: str, params: tuple[float, ...],
+                           start: tuple[float, float]) -> tuple[float, float, float, float]:
+    """MuJoCo (activation, deactivation) time constants (s) that best follow an OpenSim activation
+    law (:func:`_activation_rate`).
+
+    MuJoCo's muscle uses ``(u - a)/tau`` with ``tau = tact (0.5 + 1.5 a)`` rising and
+    ``tdeact / (0.5 + 1.5 a)`` falling. Both are integrated (OpenSim's law at 0.1 ms, MuJoCo as it
     steps, 2 ms with step-mean controls) under seeded random sine excitations and the time
-    constants minimise the RMS difference of the activations. Returns the two time constants,
-    that RMS and the RMS of the step-matched mapping.
+    constants, starting at ``start``, minimise the RMS difference of the activations. Returns the
+    two time constants, that RMS and the RMS of ``start``.
     """
     from scipy.optimize import minimize
 
@@ -109,16 +170,14 @@ def _schutte_time_constants(ts: float, a1: float, a2: float) -> tuple[float, flo
     sets = generate_activations(["m"], ACTIVATION_FIT_SETS, seed=0, p_active=1.0, max_freq=ACTIVATION_FIT_MAX_FREQ)
     u = sets.values[:, :, 0]  # (sets, T) at 2 ms
     dt, sub = 0.002, 20
-    # Schutte, Euler at dt/sub on the linearly interpolated excitation, sampled every dt
+    # OpenSim's law, Euler at dt/sub on the linearly interpolated excitation, sampled every dt
     fine = np.linspace(0.0, 1.0, sub, endpoint=False)
     a = np.zeros_like(u)
     act = np.zeros(u.shape[0])
     for k in range(u.shape[1] - 1):
         a[:, k] = act
         for f in fine:
-            uk = u[:, k] + f * (u[:, k + 1] - u[:, k])
-            rate = np.where(uk >= act, (uk - act) * (a1 * uk + a2), (uk - act) * a2) / ts
-            act = act + (dt / sub) * rate
+            act = act + (dt / sub) * _activation_rate(law, params, u[:, k] + f * (u[:, k + 1] - u[:, k]), act)
     a[:, -1] = act
     ctrl = 0.5 * (u[:, :-1] + u[:, 1:])
 
@@ -132,11 +191,10 @@ def _schutte_time_constants(ts: float, a1: float, a2: float) -> tuple[float, flo
             err += float(np.sum((b - a[:, k + 1]) ** 2))
         return math.sqrt(err / ctrl.size)
 
-    tau_a, tau_d = ts / (a1 + a2), ts / a2
-    step = np.log([tau_a * math.log(10) / (2 * math.log(10) - 1.35), tau_d * math.log(10) / (2 * math.log(6.5 / 2))])
-    best = minimize(mujoco_rms, step, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-7})
-    x = best.x if best.fun < mujoco_rms(step) else step
-    return float(math.exp(x[0])), float(math.exp(x[1])), float(mujoco_rms(x)), float(mujoco_rms(step))
+    x0 = np.log(start)
+    best = minimize(mujoco_rms, x0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-7})
+    x = best.x if best.fun < mujoco_rms(x0) else x0
+    return float(math.exp(x[0])), float(math.exp(x[1])), float(mujoco_rms(x)), float(mujoco_rms(x0))
 
 
 def _tabulated_inverse(v_of_f, f_lo: float, f_hi: float, u: np.ndarray) -> np.ndarray:
@@ -184,6 +242,18 @@ def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float
         fn = _downcast(m, type_name).get_force_velocity_curve()
         fv = np.array([fn.calcValue(osim.Vector(1, float(x))) for x in u])
         return fv, _prop(m, "max_contraction_velocity"), notes
+    if type_name == "MeyerFregly2016Muscle":
+        # the fiber force at full activation and optimal length: fv(u) + fiber_damping * u
+        d = _prop(m, "fiber_damping", 0.0)
+        fv = np.array([osim.MeyerFregly2016Muscle.calcForceVelocityMultiplier(float(x)) for x in u]) + d * u
+        if d:
+            notes.append(f"fiber damping {d:.3g} (normalized force per normalized velocity) folded into the "
+                         "force-velocity curve")
+        return fv, _prop(m, "max_contraction_velocity"), notes
+    if type_name == "Delp1990Muscle_Deprecated":
+        return _delp_force_velocity(m, u, notes)
+    if type_name == "Thelen2003Muscle_Deprecated":
+        return _thelen_deprecated_force_velocity(m, u, notes)
     # Schutte1993Muscle_Deprecated::calcFiberVelocity (velocity in optimal lengths per time_scale)
     d = _prop(m, "damping")
     kv, slope_k, fmax = 0.15, 0.13, 1.4
@@ -205,3 +275,50 @@ def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float
                  "optimal fiber lengths/s")
     return np.maximum(fv, 0.0), 1.0 / ts, notes
 
+
+def _function_prop(obj, name: str):
+    """An OpenSim Function held in an object property, by name."""
+    osim = runtime.opensim()
+    return osim.Function.safeDownCast(obj.getPropertyByName(name).getValueAsObject())
+
+
+def _delp_force_velocity(m, u: np.ndarray, notes: list[str]) -> tuple[np.ndarray, float, list[str]]:
+    """Delp1990Muscle_Deprecated's ``force_velocity_curve``, a function of the fiber velocity in
+    optimal fiber lengths per ``time_scale`` (-1 = max shortening): vmax = 1/time_scale."""
+    osim = runtime.opensim()
+    fn, ts = _function_prop(m, "force_velocity_curve"), _prop(m, "time_scale")
+    fv = np.array([fn.calcValue(osim.Vector(1, float(x))) for x in u])
+    notes.append(f"Delp1990 force-velocity: max shortening velocity 1/time_scale = {1 / ts:.3g} optimal fiber "
+                 f"lengths/s; the muscle's mass ({_prop(m, 'mass', 0.0):.3g}, normalized) is left out")
+    return np.maximum(fv, 0.0), 1.0 / ts, notes
+
+
+def _thelen_deprecated_force_velocity(m, u: np.ndarray, notes: list[str]) -> tuple[np.ndarray, float, list[str]]:
+    """Thelen2003Muscle_Deprecated::calcFiberVelocity inverted at full activation and optimal length
+    (velocity in ``Vmax`` optimal fiber lengths/s, damping included)."""
+    af, flen, d = _prop(m, "Af"), _prop(m, "Flen"), _prop(m, "damping")
+    eps = 1e-6
+
+    def shortening(fv: float) -> float:  # Fv < Fa = 1
+        return (fv - 1.0) / (1.0 + fv / af + d)
+
+    def lengthening(fv: float) -> float:  # 1 <= Fv < 0.95 Flen
+        return (fv - 1.0) / ((2 + 2 / af) * (flen - fv) / (flen - 1) + d)
+
+    def vel(fv: float) -> float:
+        if fv < 0.0:  # linear below zero force, as OpenSim extrapolates
+            return shortening(0.0) + fv * (shortening(eps) - shortening(0.0)) / eps
+        if fv < 1.0:
+            return shortening(fv)
+        f0 = 0.95 * flen
+        if fv < f0:
+            return lengthening(fv)
+        f1 = (0.95 + eps) * flen
+        return lengthening(f0) + (lengthening(f1) - lengthening(f0)) / (f1 - f0) * (fv - f0)
+
+    fv = _tabulated_inverse(vel, -0.5, flen * 1.2, u)
+    vmax, vmax0 = _prop(m, "Vmax"), _prop(m, "Vmax0")
+    notes.append(f"Thelen2003Muscle_Deprecated force-velocity at full activation: max shortening velocity "
+                 f"Vmax = {vmax:.3g} optimal fiber lengths/s (OpenSim lowers it towards Vmax0 = {vmax0:.3g} "
+                 "as activation falls; MuJoCo's is fixed)")
+    return np.maximum(fv, 0.0), vmax, notes

@@ -17,7 +17,8 @@ evaluates exactly this (the tests check it against ``mjData.actuator_force``).
 
 :func:`fit_muscles` maps every muscle of an OpenSim model (Thelen2003Muscle,
 Millard2012EquilibriumMuscle, Millard2012AccelerationMuscle, Schutte1993Muscle_Deprecated,
-DeGrooteFregly2016Muscle, RigidTendonMuscle) to a :class:`MuscleParams`:
+DeGrooteFregly2016Muscle, RigidTendonMuscle, Delp1990Muscle_Deprecated,
+Thelen2003Muscle_Deprecated, MeyerFregly2016Muscle) to a :class:`MuscleParams`:
 
 * ``lengthrange``: the smallest and largest MTU length OpenSim computes over random poses
   (every independent coordinate uniform in its range, seeded), the default pose, each

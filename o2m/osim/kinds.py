@@ -26,6 +26,7 @@ def opensim_typenames() -> frozenset[str]:
 MUSCLE_TYPES = frozenset({
     "Thelen2003Muscle", "Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle",
     "Schutte1993Muscle_Deprecated", "DeGrooteFregly2016Muscle", "RigidTendonMuscle",
+    "Delp1990Muscle_Deprecated", "Thelen2003Muscle_Deprecated", "MeyerFregly2016Muscle",
 })
 #: Ligaments: a spring on the path's tendon (:mod:`o2m.convert.ligaments`).
 LIGAMENT_TYPES = frozenset({"Ligament", "Blankevoort1991Ligament"})

@@ -263,7 +263,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
         q[k] = [c.getValue(s) for c in coord_objs]
         u[k] = [c.getSpeedValue(s) for c in coord_objs]
         act[k] = [m.getActivation(s) for m in muscle_objs]
-        force[k] = [m.getTendonForce(s) for m in muscle_objs]  # valid: the state is realized to Dynamics
+        force[k] = [_tendon_force(m, s) for m in muscle_objs]  # valid: the state is realized to Dynamics
         return bool(np.isfinite(q[k]).all() and np.isfinite(u[k]).all())
 
     t_integrate = [float("nan")]
@@ -355,6 +355,15 @@ def run_isolated(osim_path: str | os.PathLike[str], times: np.ndarray, excitatio
             return OpenSimRun.empty("failed", f"worker exited with status {proc.returncode}: {' | '.join(tail)}",
                                     times, wall_time=time.perf_counter() - t0)
         return OpenSimRun.from_npz(out)
+
+
+def _tendon_force(muscle, state) -> float:
+    """A muscle's tendon force (N); its actuation where OpenSim 4.6 does not implement the muscle's
+    dynamics (Delp1990Muscle_Deprecated: "calcActiveForce() NOT IMPLEMENTED")."""
+    try:
+        return float(muscle.getTendonForce(state))
+    except RuntimeError:
+        return float(muscle.getActuation(state))
 
 
 def run_many(osim_path: str | os.PathLike[str], times: np.ndarray, excitation_sets: np.ndarray,

@@ -3,6 +3,7 @@ model's static tendon forces."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -50,3 +51,57 @@ def test_bench_equals_full_model(arm26):
             lengths = np.array([[m.getLength(st)] for m in muscles])
             on_bench, _ = bench.forces(lengths, a)
             np.testing.assert_allclose(on_bench[:, 0], full, rtol=1e-6, atol=1e-6)
+
+
+def _delp_static_force(opensim, m, length: float, a: float) -> float:
+    """Delp1990's static tendon force (N) at MTU ``length`` (m) and activation ``a``, solved from
+    its curves: tendon force = (a fal + fp) x cos(pennation) at constant fiber width."""
+    from scipy.optimize import brentq
+
+    def curve(name):
+        fn = opensim.Function.safeDownCast(m.getPropertyByName(name).getValueAsObject())
+        return lambda x: fn.calcValue(opensim.Vector(1, float(x)))
+
+    fal, fp, ft = curve("active_force_length_curve"), curve("passive_force_length_curve"), curve(
+        "tendon_force_length_curve")
+    lopt, lts = m.getOptimalFiberLength(), m.getTendonSlackLength()
+    w = lopt * math.sin(m.getPennationAngleAtOptimalFiberLength())
+
+    def tendon(lf):
+        strain = (length - math.sqrt(lf * lf - w * w)) / lts - 1.0
+        return ft(strain) if strain >= 0 else 0.0
+
+    def residual(lf):
+        fiber = max(a * fal(lf / lopt), 0.0) + max(fp(lf / lopt), 0.0)
+        return tendon(lf) - fiber * math.sqrt(lf * lf - w * w) / lf
+
+    return m.getMaxIsometricForce() * tendon(brentq(residual, max(1.0001 * w, 0.05 * lopt), 1.5 * length))
+
+
+def test_bench_reads_delp1990_forces_opensim_cannot_give_through_its_dynamics(arm26, tmp_path):
+    """Delp1990Muscle_Deprecated has no muscle dynamics in OpenSim 4.6 (getTendonForce raises
+    "calcActiveForce() NOT IMPLEMENTED"); the bench reads the force its static equilibrium leaves
+    in the actuation. It equals the equilibrium solved here from the muscle's own curves, to
+    OpenSim's tolerance (0.01 N)."""
+    import opensim
+
+    from o2m.osim.document import load_document
+
+    opensim.Logger.setLevelString("error")
+    tag = "Delp1990Muscle_Deprecated"
+    text = arm26.read_text().replace("<Thelen2003Muscle ", f"<{tag} ").replace("</Thelen2003Muscle>", f"</{tag}>")
+    (tmp_path / "delp.osim").write_text(text)
+    doc = load_document(tmp_path / "delp.osim")
+    names = ["TRIlong", "BICshort"]  # pennated and not
+    elements = _muscle_elements(doc, names)
+    bench = _Bench(doc, [elements[n] for n in names])
+    for m in bench.muscles:
+        with pytest.raises(RuntimeError, match="NOT IMPLEMENTED"):
+            m.getTendonForce(bench.state)
+    lengths = np.array([[m.getTendonSlackLength() + m.getOptimalFiberLength() * x for x in np.linspace(0.5, 1.7, 7)]
+                        for m in bench.muscles])
+    for a in (1.0, 0.0):
+        forces, _ = bench.forces(lengths, a)
+        expected = [[_delp_static_force(opensim, m, x, a) for x in lengths[k]] for k, m in enumerate(bench.muscles)]
+        np.testing.assert_allclose(forces, expected, atol=0.02)
+        assert np.ptp(forces) > 100  # (not all slack)

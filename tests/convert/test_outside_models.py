@@ -125,6 +125,45 @@ def test_path_forces_o2m_does_not_convert_are_listed_as_skipped(tmp_path):
     assert skipped.get(("ClutchedPathSpring", "clutch")) == why and skipped.get(("McKibbenActuator", "mck")) == why
 
 
+def test_the_muscle_types_once_skipped_convert(tmp_path):
+    """Delp1990Muscle_Deprecated, Thelen2003Muscle_Deprecated and MeyerFregly2016Muscle (once
+    listed as skipped) become MuJoCo muscles on their tendons, fitted to OpenSim's forces."""
+    m = osim.Model()
+    m.setName("muscle_types")
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+    m.addBody(b)
+    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
+    joint.upd_coordinates(0).setRangeMin(-0.05)
+    joint.upd_coordinates(0).setRangeMax(0.05)
+    m.addJoint(joint)
+    types = ("Delp1990Muscle_Deprecated", "Thelen2003Muscle_Deprecated", "MeyerFregly2016Muscle")
+    for i in range(len(types)):
+        mus = osim.Thelen2003Muscle(f"m{i}", 200.0, 0.1, 0.2, 0.0)
+        mus.addNewPathPoint("p1", m.getGround(), osim.Vec3(-0.3, 0.01 * i, 0))
+        mus.addNewPathPoint("p2", b, osim.Vec3(0, 0.01 * i, 0))
+        m.addForce(mus)
+    m.finalizeConnections()
+    m.printToXML(str(tmp_path / "built.osim"))
+    text = (tmp_path / "built.osim").read_text()
+    for i, tag in enumerate(types):  # the same muscle, of each type (MeyerFregly2016Muscle needs a rigid tendon)
+        start = text.index(f'<Thelen2003Muscle name="m{i}">')
+        end = text.index("</Thelen2003Muscle>", start) + len("</Thelen2003Muscle>")
+        body = text[start:end].replace("Thelen2003Muscle", tag)
+        if tag == "MeyerFregly2016Muscle":
+            body = body.replace("<ignore_tendon_compliance>false", "<ignore_tendon_compliance>true")
+        text = text[:start] + body + text[end:]
+    (tmp_path / "muscle_types.osim").write_text(text)
+    conv = convert(tmp_path / "muscle_types.osim", tmp_path / "out", convert_options())
+    assert not any(s.element in types for s in conv.report.skipped)
+    # each mapping's approximation and its measured error are in the report's notes
+    for i, what in enumerate(("Schutte activation dynamics", "constant time constants", "rates blended by 0.5 tanh")):
+        assert any(n.startswith(f"m{i}: ") and what in n and "activation RMS error" in n for n in conv.report.notes)
+    model = mujoco.MjModel.from_xml_path(str(conv.xml))
+    for i in range(len(types)):
+        act = model.actuator(f"m{i}")
+        assert model.tendon(int(act.trnid[0])).name and act.gainprm[2] == pytest.approx(200.0)  # force
+
+
 def test_a_blankevoort_ligament_pulls_as_in_opensim(tmp_path):
     """Blankevoort1991Ligament: a spring on its tendon with OpenSim's toe region and linear part."""
     m = osim.Model()
