@@ -17,6 +17,7 @@ from lxml import etree
 
 from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
 from o2m.osim import runtime
+from o2m.osim.kinds import renamed_type
 
 #: First document version of the OpenSim 4.x format.
 VERSION_4 = 40000
@@ -270,6 +271,16 @@ def opensim_refusal(path: str | Path, exc: Exception) -> Exception:
     return doc.error(el, f"makes OpenSim refuse the model: {reason}")
 
 
+def _rename_old_types(model: etree._Element) -> None:
+    """Give every element whose tag is an old type name OpenSim still reads (a 4.x file may say
+    ``<Schutte1993Muscle>``) the tag of the type OpenSim reads it as, so that o2m's handlers,
+    which dispatch on the tag, see what OpenSim sees."""
+    for el in model.iter(etree.Element):  # elements only, not comments
+        new = renamed_type(el.tag)
+        if new is not None:
+            el.tag = new
+
+
 def load_document(path: str | Path) -> OsimDocument:
     """Read an .osim file (4.x, or 3.x upgraded through OpenSim) into an :class:`OsimDocument`."""
     path = Path(path)
@@ -291,4 +302,6 @@ def load_document(path: str | Path) -> OsimDocument:
     model = root.find("Model")
     if model is None:
         raise ModelFileError(f"{path}: <OpenSimDocument> holds no <Model>")
+    if original is None:  # OpenSim's upgrade of a 3.x document already wrote the current names
+        _rename_old_types(model)
     return OsimDocument(path=path, model=model, version=version, original=original)

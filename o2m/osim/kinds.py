@@ -7,7 +7,10 @@ from functools import cache
 
 from o2m.osim import runtime
 
-__all__ = ["BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MUSCLE_TYPES", "PATH_TYPES", "opensim_typenames", "set_of_type"]
+__all__ = [
+    "BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MUSCLE_TYPES", "PATH_TYPES",
+    "opensim_typenames", "renamed_type", "set_of_type",
+]
 
 #: Constraints between two bodies that become MuJoCo equalities (:mod:`o2m.convert.constraints`).
 BODY_CONSTRAINTS = frozenset({"WeldConstraint", "PointConstraint", "ConstantDistanceConstraint"})
@@ -21,6 +24,19 @@ def opensim_typenames() -> frozenset[str]:
     opensim.OpenSimObject.getRegisteredTypenames(names)
     return frozenset(names.get(i) for i in range(names.getSize()))
 
+
+
+@cache
+def renamed_type(tag: str) -> str | None:
+    """The type OpenSim reads an element ``tag`` as, where it is an old name OpenSim still accepts
+    (``Delp1990Muscle`` is read as ``Delp1990Muscle_Deprecated``, ``MuscleViaPoint`` as
+    ``ConditionalPathPoint``); None for a current type name or any other tag. OpenSim keeps this
+    table itself (``Object::renameType``), so o2m asks it rather than copying it."""
+    if tag in opensim_typenames():
+        return None
+    instance = runtime.opensim().OpenSimObject.getDefaultInstanceOfType(tag)
+    name = instance.getConcreteClassName() if instance is not None else None
+    return name if name and name != tag else None
 
 #: The muscles and other path forces o2m converts (their paths are read by :mod:`o2m.osim.paths`).
 MUSCLE_TYPES = frozenset({

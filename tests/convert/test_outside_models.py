@@ -164,6 +164,37 @@ def test_the_muscle_types_once_skipped_convert(tmp_path):
         assert model.tendon(int(act.trnid[0])).name and act.gainprm[2] == pytest.approx(200.0)  # force
 
 
+def test_old_type_names_opensim_still_reads_convert_as_their_current_types(tmp_path):
+    """A 4.x file may use a type's old name (``<Schutte1993Muscle>``, ``<MuscleViaPoint>``), which
+    OpenSim reads as the current type: o2m converts it as OpenSim reads it, not as unknown."""
+    m = osim.Model()
+    m.setName("old_names")
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+    m.addBody(b)
+    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
+    joint.upd_coordinates(0).setRangeMin(-0.05)
+    joint.upd_coordinates(0).setRangeMax(0.05)
+    m.addJoint(joint)
+    mus = osim.Thelen2003Muscle("m", 200.0, 0.1, 0.2, 0.0)  # retyped below (no Python class for Schutte)
+    mus.addNewPathPoint("p1", m.getGround(), osim.Vec3(-0.3, 0, 0))
+    mus.addNewPathPoint("p2", b, osim.Vec3(0, 0, 0))
+    m.addForce(mus)
+    m.finalizeConnections()
+    m.printToXML(str(tmp_path / "built.osim"))
+    built = (tmp_path / "built.osim").read_text().replace("<optimal_force>1</optimal_force>", "")
+    old, current = tmp_path / "old" / "model.osim", tmp_path / "current" / "model.osim"
+    for path, tag in ((old, "Schutte1993Muscle"), (current, "Schutte1993Muscle_Deprecated")):
+        path.parent.mkdir()
+        path.write_text(built.replace("Thelen2003Muscle", tag))
+    assert "<Schutte1993Muscle " in old.read_text()
+    assert osim.Model(str(old)).getMuscles().get("m").getConcreteClassName() == "Schutte1993Muscle_Deprecated"
+    conv = convert(old, tmp_path / "old" / "out", convert_options())
+    model = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert model.actuator("m").gainprm[2] == pytest.approx(200.0)
+    ref = convert(current, tmp_path / "current" / "out", convert_options())
+    assert conv.xml.read_text() == ref.xml.read_text()
+
+
 def test_a_blankevoort_ligament_pulls_as_in_opensim(tmp_path):
     """Blankevoort1991Ligament: a spring on its tendon with OpenSim's toe region and linear part."""
     m = osim.Model()
