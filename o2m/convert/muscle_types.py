@@ -66,7 +66,7 @@ def _downcast(muscle, type_name: str):
 
 def _activation_times(m, type_name: str, notes: list[str]) -> tuple[float, float]:
     """MuJoCo (activation, deactivation) time constants for an OpenSim muscle."""
-    if type_name in ("Thelen2003Muscle", "Millard2012EquilibriumMuscle", "DeGrooteFregly2016Muscle"):
+    if type_name in ("Thelen2003Muscle", "Millard2012EquilibriumMuscle"):
         ta, td = _prop(m, "activation_time_constant"), _prop(m, "deactivation_time_constant")
         _note_ignored_activation(m, notes)
         return ta, td
@@ -81,7 +81,7 @@ def _activation_times(m, type_name: str, notes: list[str]) -> tuple[float, float
                      f"excitations: activation RMS error {rms:.4f} (matching a full step's rise and decay "
                      f"instead: {rms_step:.4f})")
         return ta, td
-    if type_name in ("Thelen2003Muscle_Deprecated", "MeyerFregly2016Muscle"):
+    if type_name in ("Thelen2003Muscle_Deprecated", "MeyerFregly2016Muscle", "DeGrooteFregly2016Muscle"):
         return _other_activation_law(m, type_name, notes)
     notes.append("RigidTendonMuscle has no activation dynamics; MuJoCo's default time constants 0.01/0.04 s")
     return MUJOCO_DEFAULTS["timeconst"]
@@ -93,14 +93,16 @@ def _note_ignored_activation(m, notes: list[str]) -> None:
                      "muscle filters with the muscle's time constants")
 
 
-#: MeyerFregly2016Muscle's tanh steepness where its ``activation_dynamics_smoothing`` property is
-#: missing (the constant of the versions without it).
+#: DeGrooteFregly2016Muscle's and MeyerFregly2016Muscle's tanh steepness where their
+#: ``activation_dynamics_smoothing`` property is missing (the constant of the versions without it).
 MEYER_FREGLY_SMOOTHING = 0.1
 
 
 def _other_activation_law(m, type_name: str, notes: list[str]) -> tuple[float, float]:
     """Time constants (s) fitted to the activation laws that are not MuJoCo's: Thelen2003Muscle_Deprecated's
-    constant time constants and MeyerFregly2016Muscle's tanh blend of the two rates."""
+    constant time constants and the tanh blend of the two rates of DeGrooteFregly2016Muscle and
+    MeyerFregly2016Muscle (MuJoCo switches between them where the excitation passes the activation;
+    their default smoothing 0.1 keeps both rates near their mean)."""
     ta, td = _prop(m, "activation_time_constant"), _prop(m, "deactivation_time_constant")
     if type_name == "Thelen2003Muscle_Deprecated":
         law, params = "constant", (ta, td)
@@ -132,7 +134,7 @@ def _activation_rate(law: str, params: tuple[float, ...], u: np.ndarray, a: np.n
     if law == "constant":  # Thelen2003Muscle_Deprecated
         ta, td = params
         return np.where(e >= 0, e / ta, e / td)
-    ta, td, b = params  # tanh_blend: MeyerFregly2016Muscle
+    ta, td, b = params  # tanh_blend: DeGrooteFregly2016Muscle, MeyerFregly2016Muscle
     z, f = 0.5 + 1.5 * a, 0.5 * np.tanh(b * e)
     return e * ((f + 0.5) / (ta * z) + (0.5 - f) * z / td)
 

@@ -72,3 +72,33 @@ def test_thelen_deprecated_force_velocity_is_opensims(tmp_path):
     fv, vmax, _ = _force_velocity(m, tag, np.array(u))
     assert vmax == 10.0 and min(u) < -0.3 and max(u) > 0.1  # shortening and lengthening
     np.testing.assert_allclose(fv, f, atol=1e-3)
+
+
+def test_degroote_activation_law_is_opensims():
+    """DeGrooteFregly2016Muscle's activation derivative in OpenSim is the tanh blend o2m maps
+    (:func:`_activation_rate`), at rising and falling excitations."""
+    import opensim
+
+    opensim.Logger.setLevelString("error")
+    model = opensim.Model()
+    body = opensim.Body("b", 1.0, opensim.Vec3(0), opensim.Inertia(0.01))
+    model.addBody(body)
+    model.addJoint(opensim.SliderJoint("s", model.getGround(), body))
+    muscle = opensim.DeGrooteFregly2016Muscle()
+    muscle.setName("m")
+    muscle.set_activation_time_constant(0.02)
+    muscle.set_deactivation_time_constant(0.07)
+    muscle.addNewPathPoint("p1", model.getGround(), opensim.Vec3(-0.3, 0, 0))
+    muscle.addNewPathPoint("p2", body, opensim.Vec3(0))
+    model.addForce(muscle)
+    state = model.initSystem()
+    b = muscle.get_activation_dynamics_smoothing()
+    for u, a in ((0.9, 0.2), (0.3, 0.25), (0.1, 0.6), (0.55, 0.6)):
+        model.setStateVariableValue(state, "/forceset/m/activation", a)
+        controls = model.updControls(state)
+        muscle.setControls(opensim.Vector(1, u), controls)
+        model.setControls(state, controls)
+        model.realizeAcceleration(state)
+        rate = model.getStateVariableDerivativeValue(state, "/forceset/m/activation")
+        ours = _activation_rate("tanh_blend", (0.02, 0.07, b), np.array([u]), np.array([a]))[0]
+        np.testing.assert_allclose(rate, ours, rtol=1e-9)
