@@ -320,3 +320,85 @@ def test_a_coupled_expression_bushing_is_skipped_with_the_reason(tmp_path):
     conv = convert(path, tmp_path / "out", convert_options())
     why = next(s.reason for s in conv.report.skipped if s.element == "ExpressionBasedBushingForce")
     assert why.startswith("<Mx_expression> '10*theta_x+3*theta_y' is not a constant times theta_x")
+
+
+def _bare_document(bodies: str, joints: str, ground: bool = True) -> str:
+    """A 4.x document with ``bodies`` and ``joints`` (XML), a <Ground> only when ``ground``."""
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000"><Model name="bare">
+{'<Ground name="ground"/>' if ground else ''}
+<BodySet name="bodyset"><objects>{bodies}</objects></BodySet>
+<JointSet name="jointset"><objects>{joints}</objects></JointSet>
+</Model></OpenSimDocument>
+"""
+
+
+def _pin(name: str, parent: str, child: str, coordinates: str = "", offset: str = "0 -0.3 0") -> str:
+    return f"""<PinJoint name="{name}"><socket_parent_frame>{parent}_offset</socket_parent_frame>
+<socket_child_frame>{child}_offset</socket_child_frame>{coordinates}<frames>
+<PhysicalOffsetFrame name="{parent}_offset"><socket_parent>{'/ground' if parent == 'ground' else '/bodyset/' + parent}</socket_parent>
+<translation>{offset}</translation></PhysicalOffsetFrame>
+<PhysicalOffsetFrame name="{child}_offset"><socket_parent>/bodyset/{child}</socket_parent></PhysicalOffsetFrame>
+</frames></PinJoint>"""
+
+
+def test_empty_property_elements_keep_opensims_defaults(tmp_path):
+    """OpenSim ignores a property element that holds no value ("Failed to read ... ignored") and
+    keeps the default; o2m refused it ("lacks <default_value>") before."""
+    body = """<Body name="rod"><mass>1</mass><mass_center></mass_center><inertia>0.1 0.1 0.1 0 0 0</inertia></Body>"""
+    coord = """<coordinates><Coordinate name="rz"><default_value></default_value><range> </range>
+</Coordinate></coordinates>"""
+    src = tmp_path / "empty.osim"
+    src.write_text(_bare_document(body, _pin("pin", "ground", "rod", coord)))
+    conv = convert(src, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert m.qpos0[m.joint("rz").qposadr[0]] == 0.0
+    assert np.allclose(m.body_ipos[m.body("rod").id], 0.0)
+    rep = compare_kinematics(src, conv.xml, n_poses=10)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+
+
+def test_a_model_without_ground_or_coordinates_gets_opensims(tmp_path):
+    """No <Ground> element and joints that list no coordinates: OpenSim gives the model its ground
+    and each joint coordinates named ``_coord_0`` ...; two joints sharing that name convert as
+    ``<joint>__coord_0`` (shared coordinate names), the bodies where OpenSim puts them."""
+    bodies = "".join(f'<Body name="{b}"><mass>1</mass><mass_center>0 -0.1 0</mass_center>'
+                     f'<inertia>0.01 0.01 0.01 0 0 0</inertia></Body>' for b in ("upper", "lower"))
+    src = tmp_path / "bare.osim"
+    src.write_text(_bare_document(bodies, _pin("hip", "ground", "upper") + _pin("knee", "upper", "lower"),
+                                  ground=False))
+    conv = convert(src, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert {m.joint(i).name for i in range(m.njnt)} == {"hip__coord_0", "knee__coord_0"}
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+
+
+def test_a_weld_joint_closing_a_loop_becomes_a_weld_equality(tmp_path):
+    """ground -pin-> a -pin-> b, and b also welded to ground where the pins put it at q = 0: the
+    weld closes a loop (a body the child of two joints, refused before). It becomes a weld
+    equality, met at q = 0 and violated when a pin turns; the two pins stay in the tree."""
+    bodies = "".join(f'<Body name="{b}"><mass>1</mass><mass_center>0 -0.1 0</mass_center>'
+                     f'<inertia>0.01 0.01 0.01 0 0 0</inertia></Body>' for b in ("a", "b"))
+    coords = '<coordinates><Coordinate name="{}"/></coordinates>'
+    weld = """<WeldJoint name="tie"><socket_parent_frame>tie_offset</socket_parent_frame>
+<socket_child_frame>/bodyset/b</socket_child_frame><frames><PhysicalOffsetFrame name="tie_offset">
+<socket_parent>/ground</socket_parent><translation>0 0.3 0</translation></PhysicalOffsetFrame></frames></WeldJoint>"""
+    joints = _pin("p1", "ground", "a", coords.format("q1"), "0 0.6 0") \
+        + _pin("p2", "a", "b", coords.format("q2"), "0 -0.3 0") + weld
+    src = tmp_path / "loop.osim"
+    src.write_text(_bare_document(bodies, joints))
+    conv = convert(src, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert m.neq == 1 and m.eq_type[0] == mujoco.mjtEq.mjEQ_WELD
+    assert m.body_parentid[m.body("b").id] == m.body("a").id
+    d = mujoco.MjData(m)
+
+    def violation(q1: float) -> float:
+        d.qpos[:] = 0.0
+        d.qpos[m.joint("q1").qposadr[0]] = q1
+        mujoco.mj_forward(m, d)
+        return float(np.abs(d.efc_pos[d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY]).max())
+
+    assert violation(0.0) < 1e-12
+    assert violation(0.4) > 0.05
