@@ -334,9 +334,10 @@ def _bare_document(bodies: str, joints: str, ground: bool = True) -> str:
 
 
 def _pin(name: str, parent: str, child: str, coordinates: str = "", offset: str = "0 -0.3 0") -> str:
+    parent_path = "/ground" if parent == "ground" else f"/bodyset/{parent}"
     return f"""<PinJoint name="{name}"><socket_parent_frame>{parent}_offset</socket_parent_frame>
 <socket_child_frame>{child}_offset</socket_child_frame>{coordinates}<frames>
-<PhysicalOffsetFrame name="{parent}_offset"><socket_parent>{'/ground' if parent == 'ground' else '/bodyset/' + parent}</socket_parent>
+<PhysicalOffsetFrame name="{parent}_offset"><socket_parent>{parent_path}</socket_parent>
 <translation>{offset}</translation></PhysicalOffsetFrame>
 <PhysicalOffsetFrame name="{child}_offset"><socket_parent>/bodyset/{child}</socket_parent></PhysicalOffsetFrame>
 </frames></PinJoint>"""
