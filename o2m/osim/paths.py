@@ -133,7 +133,9 @@ def read_wrap_objects(reader: SkeletonReader) -> dict[str, WrapObject]:
     """Every wrap object of every body (and ground), by name."""
     doc = reader.doc
     out: dict[str, WrapObject] = {}
-    for owner in list(reader.model.iter("Body", "Ground")):
+    for owner in list(reader.model.iter("Body", "Ground", "PhysicalOffsetFrame", "StationDefinedFrame")):
+        if owner.tag not in ("Body", "Ground") and owner.find("WrapObjectSet/objects/*") is None:
+            continue  # a frame holds wrap objects too (OpenSim 4 moved the set from Body to Frame)
         body, x_body, _ = reader.frame(owner)
         for el in owner.iterfind("WrapObjectSet/objects/*"):
             if not isinstance(el.tag, str):

@@ -403,3 +403,73 @@ def test_a_weld_joint_closing_a_loop_becomes_a_weld_equality(tmp_path):
 
     assert violation(0.0) < 1e-12
     assert violation(0.4) > 0.05
+
+
+def _station_frame_model() -> str:
+    """Two bodies hinged at StationDefinedFrames built from markers in the bodies' <components>
+    (the parent's axes at their defaults, the child's given), and a muscle over a WrapCylinder held
+    by a PhysicalOffsetFrame, as OpenSim Creator writes them."""
+    markers = {"thigh": [("a", "0.01 0.02 0.0"), ("b", "0.03 0.15 0.01"), ("c", "0.02 0.01 0.12"),
+                         ("o", "0.0 -0.3 0.02")],
+               "shank": [("a", "0.0 0.0 0.0"), ("b", "0.01 0.1 0.0"), ("c", "0.1 0.0 0.02"), ("o", "0.0 0.25 0.0")]}
+
+    def frame(body: str, name: str, axes: str) -> str:
+        pts = "".join(f"<socket_{s}>/bodyset/{body}/{m}</socket_{s}>"
+                      for s, m in (("point_a", "a"), ("point_b", "b"), ("point_c", "c"), ("origin_point", "o")))
+        return f'<StationDefinedFrame name="{name}">{pts}{axes}</StationDefinedFrame>'
+
+    def body(name: str, extra: str) -> str:
+        ms = "".join(f'<Marker name="{m}"><socket_parent_frame>..</socket_parent_frame>'
+                     f'<location>{loc}</location></Marker>'
+                     for m, loc in markers[name])
+        return (f'<Body name="{name}"><components>{ms}{extra}</components><mass>1</mass>'
+                f'<mass_center>0 -0.1 0</mass_center><inertia>0.01 0.01 0.01 0 0 0</inertia></Body>')
+
+    wrap_frame = """<PhysicalOffsetFrame name="wrap_frame"><WrapObjectSet><objects><WrapCylinder name="roll">
+<radius>0.03</radius><length>0.2</length><quadrant>+x</quadrant></WrapCylinder></objects></WrapObjectSet>
+<socket_parent>..</socket_parent><translation>0 -0.3 0</translation></PhysicalOffsetFrame>"""
+    thigh = body("thigh", frame("thigh", "knee_frame", "") + wrap_frame)
+    shank = body("shank", frame("shank", "shank_frame", "<ab_axis>-y</ab_axis><ab_x_ac_axis>+z</ab_x_ac_axis>"))
+    joints = """<PinJoint name="hip"><socket_parent_frame>/ground</socket_parent_frame>
+<socket_child_frame>/bodyset/thigh</socket_child_frame><coordinates><Coordinate name="hip_q"><range>-1 1</range>
+</Coordinate>
+</coordinates></PinJoint>
+<PinJoint name="knee"><socket_parent_frame>/bodyset/thigh/knee_frame</socket_parent_frame>
+<socket_child_frame>/bodyset/shank/shank_frame</socket_child_frame><coordinates><Coordinate name="knee_q">
+<range>-1.5 0.5</range></Coordinate></coordinates></PinJoint>"""
+    muscle = """<Thelen2003Muscle name="quad"><GeometryPath name="path"><PathPointSet><objects>
+<PathPoint name="p1"><socket_parent_frame>/bodyset/thigh</socket_parent_frame><location>0.04 -0.1 0</location>
+</PathPoint>
+<PathPoint name="p2"><socket_parent_frame>/bodyset/shank</socket_parent_frame><location>0.04 0.15 0</location>
+</PathPoint>
+</objects></PathPointSet><PathWrapSet><objects><PathWrap name="w"><wrap_object>roll</wrap_object></PathWrap></objects>
+</PathWrapSet></GeometryPath><max_isometric_force>100</max_isometric_force><optimal_fiber_length>0.1</optimal_fiber_length>
+<tendon_slack_length>0.2</tendon_slack_length></Thelen2003Muscle>"""
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40600"><Model name="stations"><Ground name="ground"/>
+<BodySet name="bodyset"><objects>{thigh}{shank}</objects></BodySet>
+<JointSet name="jointset"><objects>{joints}</objects></JointSet>
+<ForceSet name="forceset"><objects>{muscle}</objects></ForceSet>
+</Model></OpenSimDocument>
+"""
+
+
+def test_station_defined_frames_and_wraps_on_frames_convert_as_in_opensim(tmp_path):
+    """A joint between StationDefinedFrames (refused before: "not a Body, Ground or
+    PhysicalOffsetFrame") puts the bodies where OpenSim does; a wrap object held by a frame other
+    than a body (unknown to the muscle before) becomes a cylinder at that frame."""
+    src = tmp_path / "stations.osim"
+    src.write_text(_station_frame_model())
+    conv = convert(src, tmp_path / "out", convert_options())
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    roll = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER
+            and m.geom_bodyid[g] == m.body("thigh").id]
+    assert len(roll) == 1 and np.allclose(m.geom_size[roll[0]][0], 0.03)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    os_model = osim.Model(str(src))
+    state = os_model.initSystem()
+    quad = osim.Muscle.safeDownCast(os_model.getForceSet().get("quad"))
+    assert d.ten_length[m.tendon("quad").id] == pytest.approx(quad.getLength(state), abs=2e-3)
