@@ -473,3 +473,42 @@ def test_station_defined_frames_and_wraps_on_frames_convert_as_in_opensim(tmp_pa
     state = os_model.initSystem()
     quad = osim.Muscle.safeDownCast(os_model.getForceSet().get("quad"))
     assert d.ten_length[m.tendon("quad").id] == pytest.approx(quad.getLength(state), abs=2e-3)
+
+
+def _coupler_model(function: str) -> str:
+    """A block on two sliders (x, then y), y = ``function``(x) by a CoordinateCouplerConstraint."""
+    slider = """<SliderJoint name="{j}"><socket_parent_frame>{p}</socket_parent_frame>
+<socket_child_frame>/bodyset/{c}</socket_child_frame><coordinates><Coordinate name="{q}"><range>-0.5 0.5</range>
+</Coordinate></coordinates>{frames}</SliderJoint>"""
+    turned = """<frames><PhysicalOffsetFrame name="up"><socket_parent>/bodyset/cart</socket_parent>
+<orientation>0 0 1.5707963267948966</orientation></PhysicalOffsetFrame></frames>"""
+    bodies = "".join(f'<Body name="{b}"><mass>1</mass><inertia>0.01 0.01 0.01 0 0 0</inertia></Body>'
+                     for b in ("cart", "block"))
+    joints = slider.format(j="sx", p="/ground", c="cart", q="x", frames="") \
+        + slider.format(j="sy", p="up", c="block", q="y", frames=turned)
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000"><Model name="coupled"><Ground name="ground"/>
+<BodySet name="bodyset"><objects>{bodies}</objects></BodySet>
+<JointSet name="jointset"><objects>{joints}</objects></JointSet>
+<ConstraintSet name="constraintset"><objects><CoordinateCouplerConstraint name="couple">
+<coupled_coordinates_function>{function}</coupled_coordinates_function>
+<independent_coordinate_names>x</independent_coordinate_names><dependent_coordinate_name>y</dependent_coordinate_name>
+</CoordinateCouplerConstraint></objects></ConstraintSet>
+</Model></OpenSimDocument>
+"""
+
+
+def test_a_one_dimensional_multivariate_polynomial_couples_as_in_opensim(tmp_path):
+    """MultivariatePolynomialFunction (OpenSim 4.4+; coefficients from the lowest power up) was an
+    unknown function type; of one dimension it is a polynomial of the independent coordinate."""
+    poly = ("<MultivariatePolynomialFunction><coefficients>0.1 0.5 2</coefficients><dimension>1</dimension>"
+            "<order>2</order></MultivariatePolynomialFunction>")
+    src = tmp_path / "coupled.osim"
+    src.write_text(_coupler_model(poly))
+    conv = convert(src, tmp_path / "out", convert_options())
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9, rep.summary()
+    two = poly.replace("<dimension>1", "<dimension>2")
+    src.write_text(_coupler_model(two))
+    with pytest.raises(UnsupportedElementError, match="MultivariatePolynomialFunction.*<dimension> 2"):
+        convert(src, tmp_path / "out2", convert_options())
