@@ -512,3 +512,60 @@ def test_a_one_dimensional_multivariate_polynomial_couples_as_in_opensim(tmp_pat
     src.write_text(_coupler_model(two))
     with pytest.raises(UnsupportedElementError, match="MultivariatePolynomialFunction.*<dimension> 2"):
         convert(src, tmp_path / "out2", convert_options())
+
+
+def test_point_to_point_and_activation_coordinate_actuators_push_as_in_opensim(tmp_path):
+    """PointToPointActuator and ActivationCoordinateActuator were "not converted yet": a motor on a
+    two-point tendon and a motor with first-order activation. At a pose, with OpenSim's actuation
+    (the point-to-point force overridden, the activation state set) and MuJoCo's (ctrl, act), the
+    accelerations agree, gravity off."""
+    m = osim.Model()
+    m.setName("actuated")
+    m.setGravity(osim.Vec3(0))
+    block = osim.Body("block", 2.0, osim.Vec3(0), osim.Inertia(0.01))
+    arm = osim.Body("arm", 1.0, osim.Vec3(0, -0.2, 0), osim.Inertia(0.02, 0.005, 0.02))
+    for b in (block, arm):
+        m.addBody(b)
+    m.addJoint(osim.SliderJoint("slide", m.getGround(), osim.Vec3(0), osim.Vec3(0), block, osim.Vec3(0), osim.Vec3(0)))
+    m.addJoint(osim.PinJoint("pin", m.getGround(), osim.Vec3(0, 1, 0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0)))
+    p2p = osim.PointToPointActuator("arm", "block")
+    p2p.setName("push")
+    p2p.set_pointA(osim.Vec3(-0.5, 0.3, 0.1))
+    p2p.set_pointB(osim.Vec3(0.05, 0.02, 0))
+    p2p.setOptimalForce(40.0)
+    m.addForce(p2p)
+    act = osim.ActivationCoordinateActuator()
+    act.setName("drive")
+    act.set_coordinate("pin_coord_0")
+    act.setOptimalForce(3.0)
+    act.set_activation_time_constant(0.03)
+    m.addForce(act)
+    m.finalizeConnections()
+    src = tmp_path / "actuated.osim"
+    m.printToXML(str(src))
+    conv = convert(src, tmp_path / "out", convert_options())
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    drive = mj.actuator("drive").id
+    assert mj.actuator_dyntype[drive] == mujoco.mjtDyn.mjDYN_FILTER and mj.actuator_dynprm[drive][0] == 0.03
+
+    model = osim.Model(str(src))
+    state = model.initSystem()
+    q = {"slide_coord_0": 0.2, "pin_coord_0": 0.7}
+    for name, v in q.items():
+        model.getCoordinateSet().get(name).setValue(state, v)
+    push = osim.ScalarActuator.safeDownCast(model.getForceSet().get("push"))
+    push.overrideActuation(state, True)
+    push.setOverrideActuation(state, 0.6 * 40.0)
+    model.getForceSet().get("drive").setStateVariableValue(state, "activation", 0.8)
+    model.realizeAcceleration(state)
+    theirs = {n: model.getCoordinateSet().get(n).getAccelerationValue(state) for n in q}
+
+    d = mujoco.MjData(mj)
+    for name, v in q.items():
+        d.qpos[mj.joint(name).qposadr[0]] = v
+    d.ctrl[mj.actuator("push").id] = 0.6
+    d.act[mj.actuator_actadr[drive]] = 0.8
+    mujoco.mj_forward(mj, d)
+    for name, acc in theirs.items():
+        assert d.qacc[mj.joint(name).dofadr[0]] == pytest.approx(acc, rel=1e-9, abs=1e-9), name
+    assert abs(theirs["slide_coord_0"]) > 1.0 and abs(theirs["pin_coord_0"]) > 1.0
