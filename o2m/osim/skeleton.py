@@ -73,6 +73,10 @@ def _bool(el: etree._Element | None, default: bool = False) -> bool:
     return el.text.strip().lower() in ("true", "1")
 
 
+def _zero_function() -> Function:
+    return parse_function(etree.fromstring("<Constant name=\"function\"><value>0</value></Constant>"))
+
+
 def _identity_function() -> Function:
     el = etree.fromstring("<LinearFunction name=\"function\"><coefficients>1 0</coefficients></LinearFunction>")
     return parse_function(el)
@@ -375,8 +379,9 @@ class SkeletonReader:
             element=el,
         )
 
-    def function_of(self, holder: etree._Element) -> Function:
-        """The function element inside ``holder`` (first child element that is a function)."""
+    def function_of(self, holder: etree._Element, default: Function | None = None) -> Function:
+        """The function element inside ``holder`` (first child element that is a function);
+        ``default`` when it holds none (an error when None)."""
         for child in holder:
             if isinstance(child.tag, str) and child.tag[:1].isupper():
                 try:
@@ -388,6 +393,8 @@ class SkeletonReader:
                         (e for e in child.iter(exc.element or child.tag)), child)
                     msg = str(exc).split("> ", 1)[-1]
                     raise self.doc.error(bad, f"{msg}{where}") from None
+        if default is not None:
+            return default
         raise self.doc.error(holder, "holds no function")
 
     def joint(self, el: etree._Element, coords: dict[str, Coordinate]) -> Joint:
@@ -437,7 +444,7 @@ class SkeletonReader:
                 if cname is not None and cname not in local:
                     raise self.doc.error(ta, f"uses coordinate '{cname}', which its joint does not define")
                 cname = local[cname] if cname is not None else None
-                func = self.function_of(ta)
+                func = self.function_of(ta, _zero_function())  # OpenSim's default: Constant 0
                 axobj = TransformAxis(axname, kind, axis / norm, cname, func, ta)
                 (rotations if kind == "rotation" else translations).append(axobj)
             rotations.sort(key=lambda a: a.name)

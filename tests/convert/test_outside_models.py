@@ -569,3 +569,32 @@ def test_point_to_point_and_activation_coordinate_actuators_push_as_in_opensim(t
     for name, acc in theirs.items():
         assert d.qacc[mj.joint(name).dofadr[0]] == pytest.approx(acc, rel=1e-9, abs=1e-9), name
     assert abs(theirs["slide_coord_0"]) > 1.0 and abs(theirs["pin_coord_0"]) > 1.0
+
+
+def test_a_transform_axis_without_a_function_is_constant_zero(tmp_path):
+    """OpenSim gives a TransformAxis that holds no function a Constant 0, even one naming a
+    coordinate (which then moves nothing); o2m refused it ("holds no function") before. One axis
+    with a function keeps the body moving, so the comparison is not of a body at rest."""
+    axes = "".join(f'<TransformAxis name="{n}"><coordinates>{c}</coordinates><axis>{a}</axis>{f}</TransformAxis>'
+                   for n, c, a, f in (
+                       ("rotation1", "q", "0 0 1", ""), ("rotation2", "", "1 0 0", ""),
+                       ("rotation3", "q", "0 1 0", "<LinearFunction><coefficients>0.5 0</coefficients>"
+                                                   "</LinearFunction>"),
+                       ("translation1", "q", "1 0 0", ""), ("translation2", "", "0 1 0", ""),
+                       ("translation3", "", "0 0 1", "")))
+    joint = f"""<CustomJoint name="j"><socket_parent_frame>/ground</socket_parent_frame>
+<socket_child_frame>/bodyset/b</socket_child_frame><coordinates><Coordinate name="q"><range>-1 1</range>
+</Coordinate></coordinates><SpatialTransform>{axes}</SpatialTransform></CustomJoint>"""
+    body = ('<Body name="b"><mass>1</mass><mass_center>0.1 0.2 0</mass_center>'
+            '<inertia>0.1 0.1 0.1 0 0 0</inertia></Body>')
+    src = tmp_path / "nofunction.osim"
+    src.write_text(_bare_document(body, joint))
+    conv = convert(src, tmp_path / "out", convert_options())
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    d.qpos[m.joint("q").qposadr[0]] = 0.8
+    mujoco.mj_kinematics(m, d)
+    assert np.allclose(d.xpos[m.body("b").id], 0.0, atol=1e-12)  # no translation, the body origin stays
+    assert not np.allclose(d.xmat[m.body("b").id], np.eye(3).ravel())  # but rotation3 turns it
