@@ -12,7 +12,7 @@ from lxml import etree
 
 from o2m.osim.functions import Function, parse_function
 from o2m.osim.kinds import MUSCLE_TYPES, PATH_TYPES
-from o2m.osim.skeleton import SkeletonReader, _floats
+from o2m.osim.skeleton import FRAME_TYPES, SkeletonReader, _floats
 from o2m.transforms import Transform, body_fixed_xyz
 
 #: Path actuators and forces whose GeometryPath o2m turns into a MuJoCo spatial tendon.
@@ -133,7 +133,7 @@ def read_wrap_objects(reader: SkeletonReader) -> dict[str, WrapObject]:
     """Every wrap object of every body (and ground), by name."""
     doc = reader.doc
     out: dict[str, WrapObject] = {}
-    for owner in list(reader.model.iter("Body", "Ground", "PhysicalOffsetFrame", "StationDefinedFrame")):
+    for owner in list(reader.model.iter(*FRAME_TYPES)):
         if owner.tag not in ("Body", "Ground") and owner.find("WrapObjectSet/objects/*") is None:
             continue  # a frame holds wrap objects too (OpenSim 4 moved the set from Body to Frame)
         body, x_body, _ = reader.frame(owner)

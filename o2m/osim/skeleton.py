@@ -40,6 +40,8 @@ JOINT_AXES: dict[str, list[tuple[str, tuple[float, float, float]]]] = {
 #: number of coordinates.
 SURFACE_JOINTS = {"EllipsoidJoint": 3, "ScapulothoracicJoint": 4}
 SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"} | frozenset(SURFACE_JOINTS)
+#: The frame types a socket, a wrap object or attached geometry may name (:meth:`SkeletonReader.frame`).
+FRAME_TYPES = ("Body", "Ground", "PhysicalOffsetFrame", "StationDefinedFrame")
 #: The six axes of a CustomJoint's SpatialTransform.
 TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
 
@@ -549,7 +551,7 @@ class SkeletonReader:
         geometry: list[Geometry] = []
         for holder in self.model.iter("attached_geometry"):
             owner = holder.getparent()
-            if owner.tag not in ("Body", "Ground", "PhysicalOffsetFrame"):
+            if owner.tag not in FRAME_TYPES:
                 continue
             body, x, fname = self.frame(owner)
             for g in holder:

@@ -416,7 +416,9 @@ def _station_frame_model() -> str:
     def frame(body: str, name: str, axes: str) -> str:
         pts = "".join(f"<socket_{s}>/bodyset/{body}/{m}</socket_{s}>"
                       for s, m in (("point_a", "a"), ("point_b", "b"), ("point_c", "c"), ("origin_point", "o")))
-        return f'<StationDefinedFrame name="{name}">{pts}{axes}</StationDefinedFrame>'
+        shape = (f'<attached_geometry><Sphere name="{name}_ball"><socket_frame>..</socket_frame><radius>0.01</radius>'
+                 '</Sphere></attached_geometry>')
+        return f'<StationDefinedFrame name="{name}">{shape}{pts}{axes}</StationDefinedFrame>'
 
     def body(name: str, extra: str) -> str:
         ms = "".join(f'<Marker name="{m}"><socket_parent_frame>..</socket_parent_frame>'
@@ -467,6 +469,10 @@ def test_station_defined_frames_and_wraps_on_frames_convert_as_in_opensim(tmp_pa
     roll = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER
             and m.geom_bodyid[g] == m.body("thigh").id]
     assert len(roll) == 1 and np.allclose(m.geom_size[roll[0]][0], 0.03)
+    # geometry attached to a StationDefinedFrame is drawn at its origin (on the body its stations are on)
+    ball = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+            and m.geom_bodyid[g] == m.body("thigh").id]
+    assert len(ball) == 1 and np.allclose(m.geom_pos[ball[0]], [0.0, -0.3, 0.02], atol=1e-12)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     os_model = osim.Model(str(src))
