@@ -283,19 +283,18 @@ def _rename_old_types(model: etree._Element) -> None:
 
 def _add_implicit_components(model: etree._Element) -> None:
     """Add the components OpenSim creates for a 4.x document that leaves them out: the ground frame,
-    and the coordinates of a joint that lists none (named as OpenSim names them, ``_coord_0`` ...,
-    at their defaults). The added elements have no source line."""
+    and the coordinates of a joint without a ``<coordinates>`` list (named as OpenSim names them,
+    ``_coord_0`` ..., at their defaults; an empty list OpenSim refuses, and so does o2m). The added
+    elements have no source line."""
     if model.find("Ground") is None:
         model.insert(0, etree.Element("Ground", name="ground"))
     for holder in (*model.findall("JointSet/objects"), *model.findall("components")):
         for joint in holder:
-            if not isinstance(joint.tag, str) or joint.find("coordinates/Coordinate") is not None:
+            if not isinstance(joint.tag, str) or joint.find("coordinates") is not None:
                 continue
             names = default_coordinates(joint.tag)
             if names:
-                listed = joint.find("coordinates")
-                if listed is None:
-                    listed = etree.SubElement(joint, "coordinates")
+                listed = etree.SubElement(joint, "coordinates")
                 for name in names:
                     etree.SubElement(listed, "Coordinate", name=name)
 

@@ -373,6 +373,11 @@ def test_a_model_without_ground_or_coordinates_gets_opensims(tmp_path):
     assert {m.joint(i).name for i in range(m.njnt)} == {"hip__coord_0", "knee__coord_0"}
     rep = compare_kinematics(src, conv.xml, n_poses=20)
     assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+    # an empty <coordinates/> list is not an absent one: OpenSim refuses it ("more mobilities than
+    # declared Coordinates"), and so does o2m
+    src.write_text(src.read_text().replace('<PinJoint name="knee">', '<PinJoint name="knee"><coordinates/>'))
+    with pytest.raises(UnsupportedElementError, match="has 0 coordinates; a PinJoint has 1"):
+        convert(src, tmp_path / "out2", convert_options())
 
 
 def test_a_weld_joint_closing_a_loop_becomes_a_weld_equality(tmp_path):
