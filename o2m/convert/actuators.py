@@ -1,6 +1,11 @@
-"""CoordinateActuator, TorqueActuator and PointActuator as MuJoCo motors and site transmissions.
+"""Coordinate, torque, point and point-to-point actuators as MuJoCo motors and transmissions.
 
 * **CoordinateActuator**: a motor on the coordinate's joint, ``gear = optimal_force``.
+* **ActivationCoordinateActuator**: the same motor with OpenSim's first-order activation, MuJoCo's
+  ``filter`` dynamics: ``act' = (ctrl - act) / activation_time_constant``, force ``gear · act``.
+* **PointToPointActuator**: a motor on a spatial tendon between its two points, ``gear =
+  optimal_force``: OpenSim pushes the points apart along their line by a positive force, as a
+  positive tendon force lengthens a MuJoCo tendon.
 * **TorqueActuator**: a site transmission with ``refsite``: the torque ``optimal_force ·
   axis`` on bodyA, its opposite on bodyB. Exact when the axis is fixed in bodyA
   (``torque_is_global`` false) or when one body is ground; a global axis between two moving
@@ -37,7 +42,8 @@ from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
 from o2m.transforms import OSIM_TO_MJ, Transform
 
-__all__ = ["convert_coordinate_actuator", "convert_point_actuator", "convert_torque_actuator", "measure_drifts"]
+__all__ = ["convert_activation_coordinate_actuator", "convert_coordinate_actuator", "convert_point_actuator",
+           "convert_point_to_point_actuator", "convert_torque_actuator", "measure_drifts"]
 
 
 def _frame_by_name(ctx: _Context, el: etree._Element, prop: str) -> tuple[str, Transform]:
@@ -69,7 +75,7 @@ def _body_site(ctx: _Context, body: str, name: str, pos: np.ndarray, quat: np.nd
     return name
 
 
-def _add_actuator(ctx: _Context, el: etree._Element, gear: np.ndarray, **target) -> None:
+def _add_actuator(ctx: _Context, el: etree._Element, gear: np.ndarray, **target) -> mujoco.MjsActuator:
     name = el.get("name")
     act = ctx.spec.add_actuator(name=name, **target)
     act.gear = [float(g) for g in gear]
@@ -84,6 +90,7 @@ def _add_actuator(ctx: _Context, el: etree._Element, gear: np.ndarray, **target)
                                             "unlimited (MuJoCo's ctrlrange has two ends)")
     ctx.out.exact[("actuator", name)] = {"gear": np.asarray(gear, dtype=float)}
     ctx.out.actuators.append(name)
+    return act
 
 
 def convert_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
@@ -98,6 +105,46 @@ def convert_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
         return
     gear = np.array([_number(el, "optimal_force", 1.0, ctx), 0, 0, 0, 0, 0])
     _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_JOINT, target=cname)
+
+
+def convert_activation_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
+    """ActivationCoordinateActuator -> the CoordinateActuator's motor with a ``filter`` activation
+    of time constant ``activation_time_constant`` (s, OpenSim's default 0.01)."""
+    tau = _number(el, "activation_time_constant", 0.01, ctx)
+    if not (np.isfinite(tau) and tau > 0):
+        raise ctx.builder.doc.error(el, f"has <activation_time_constant> {tau:g}; it must be a positive time (s)")
+    count = len(ctx.out.actuators)
+    convert_coordinate_actuator(ctx, el)
+    if len(ctx.out.actuators) == count:
+        return  # skipped: a locked coordinate
+    act = ctx.spec.actuator(el.get("name"))
+    act.dyntype = mujoco.mjtDyn.mjDYN_FILTER
+    act.dynprm = [tau] + [0.0] * (len(act.dynprm) - 1)
+    start = _number(el, "default_activation", 0.5, ctx)
+    if start != 0.0:
+        ctx.builder.result.notes.append(f"{el.tag} '{el.get('name')}': OpenSim starts its activation at {start:g}, "
+                                        "MuJoCo's act at 0 (set data.act to match)")
+
+
+def convert_point_to_point_actuator(ctx: _Context, el: etree._Element) -> None:
+    """PointToPointActuator -> a motor (gear = optimal_force) on a spatial tendon between its points."""
+    name = el.get("name")
+    ends = [_frame_by_name(ctx, el, prop) for prop in ("bodyA", "bodyB")]
+    if ends[0][0] == ends[1][0]:
+        ctx.out.skipped.append(Skipped(el.tag, name, f"both points are on '{ends[0][0]}' (no force between bodies)"))
+        return
+    if _flag(el, "points_are_global", False):
+        ctx.out.skipped.append(Skipped(el.tag, name, "its points are fixed in ground and slide over the bodies "
+                                       "(points_are_global), which no MuJoCo site does"))
+        return
+    sites = [_body_site(ctx, body, f"{name}_point{tag}", x.apply(_vector(el, f"point{tag}", (0.0, 0.0, 0.0), ctx)))
+             for (body, x), tag in zip(ends, "AB", strict=True)]
+    tendon = ctx.spec.add_tendon(name=ctx.unique("tendon", name))
+    for site in sites:
+        tendon.wrap_site(site)
+    tendon.rgba = [0.9, 0.6, 0.1, 1.0]
+    gear = np.array([_number(el, "optimal_force", 1.0, ctx), 0, 0, 0, 0, 0])
+    _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=tendon.name)
 
 
 def convert_torque_actuator(ctx: _Context, el: etree._Element) -> None:

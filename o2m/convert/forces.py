@@ -13,8 +13,8 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
   (:mod:`o2m.convert.bushings`); skipped otherwise, unless within a given tolerance.
 * **ExpressionBasedCoordinateForce**: its joint's spring and damping when the expression is linear
   in q and qdot (:mod:`o2m.convert.expression_forces`); skipped otherwise.
-* **CoordinateActuator**, **TorqueActuator**, **PointActuator**: motors and site transmissions
-  (:mod:`o2m.convert.actuators`).
+* **CoordinateActuator**, **ActivationCoordinateActuator**, **TorqueActuator**, **PointActuator**,
+  **PointToPointActuator**: motors on joints, sites and two-point tendons (:mod:`o2m.convert.actuators`).
 * **HuntCrossleyForce**, **SmoothSphereHalfSpaceForce**: geoms for their ContactSpheres and
   ContactHalfSpaces and explicit contact pairs (:mod:`o2m.convert.contact`); ElasticFoundationForce
   is listed as skipped, and so is contact geometry no converted force uses.
@@ -35,8 +35,10 @@ import mujoco
 from lxml import etree
 
 from o2m.convert.actuators import (
+    convert_activation_coordinate_actuator,
     convert_coordinate_actuator,
     convert_point_actuator,
+    convert_point_to_point_actuator,
     convert_torque_actuator,
     measure_drifts,
 )
@@ -79,6 +81,8 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "SpringGeneralizedForce": convert_spring_generalized_force,
     "ExpressionBasedBushingForce": convert_expression_bushing,
     "CoordinateActuator": convert_coordinate_actuator,
+    "ActivationCoordinateActuator": convert_activation_coordinate_actuator,
+    "PointToPointActuator": convert_point_to_point_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,
     "HuntCrossleyForce": convert_hunt_crossley,

@@ -17,7 +17,7 @@ from lxml import etree
 
 from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
 from o2m.osim import runtime
-from o2m.osim.kinds import renamed_type
+from o2m.osim.kinds import default_coordinates, renamed_type
 
 #: First document version of the OpenSim 4.x format.
 VERSION_4 = 40000
@@ -281,6 +281,24 @@ def _rename_old_types(model: etree._Element) -> None:
             el.tag = new
 
 
+def _add_implicit_components(model: etree._Element) -> None:
+    """Add the components OpenSim creates for a 4.x document that leaves them out: the ground frame,
+    and the coordinates of a joint without a ``<coordinates>`` list (named as OpenSim names them,
+    ``_coord_0`` ..., at their defaults; an empty list OpenSim refuses, and so does o2m). The added
+    elements have no source line."""
+    if model.find("Ground") is None:
+        model.insert(0, etree.Element("Ground", name="ground"))
+    for holder in (*model.findall("JointSet/objects"), *model.findall("components")):
+        for joint in holder:
+            if not isinstance(joint.tag, str) or joint.find("coordinates") is not None:
+                continue
+            names = default_coordinates(joint.tag)
+            if names:
+                listed = etree.SubElement(joint, "coordinates")
+                for name in names:
+                    etree.SubElement(listed, "Coordinate", name=name)
+
+
 def load_document(path: str | Path) -> OsimDocument:
     """Read an .osim file (4.x, or 3.x upgraded through OpenSim) into an :class:`OsimDocument`."""
     path = Path(path)
@@ -304,4 +322,5 @@ def load_document(path: str | Path) -> OsimDocument:
         raise ModelFileError(f"{path}: <OpenSimDocument> holds no <Model>")
     if original is None:  # OpenSim's upgrade of a 3.x document already wrote the current names
         _rename_old_types(model)
+    _add_implicit_components(model)
     return OsimDocument(path=path, model=model, version=version, original=original)

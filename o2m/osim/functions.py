@@ -18,7 +18,9 @@ opensim 4.6 Python API in ``tests/osim/test_functions.py``):
   m-1 (constant for degree 1, linear for cubic, quadratic for quintic, cubic for heptic).
 * ``PiecewiseLinearFunction``: linear extrapolation with the first/last segment slope;
   ``PiecewiseConstantFunction``: y[0] left of the knots, y[-1] right of them, derivative 0.
-* ``PolynomialFunction``: coefficients from the HIGHEST power to the lowest.
+* ``PolynomialFunction``: coefficients from the HIGHEST power to the lowest;
+  ``MultivariatePolynomialFunction`` of one dimension: from the LOWEST power up, read as a
+  PolynomialFunction (more dimensions are refused: a coupler or axis has one input).
 * ``LinearFunction``: ``<coefficients>slope intercept</coefficients>``.
 * ``MultiplierFunction``: ``scale * function(x)``, the wrapped element inside ``<function>``.
 
@@ -579,7 +581,7 @@ class GCVSpline(Function):
 FUNCTION_TAGS: frozenset[str] = frozenset({
     "Constant", "LinearFunction", "PolynomialFunction", "SimmSpline", "NaturalCubicSpline",
     "natCubicSpline", "GCVSpline", "PiecewiseLinearFunction", "PiecewiseConstantFunction",
-    "MultiplierFunction", "Sine", "StepFunction",
+    "MultiplierFunction", "Sine", "StepFunction", "MultivariatePolynomialFunction",
 })
 
 
@@ -644,6 +646,21 @@ def _xy(element) -> tuple[FloatArray, FloatArray]:
     return (np.zeros(0) if x is None else x), (np.zeros(0) if y is None else y)
 
 
+def _univariate_polynomial(element, meta: dict) -> PolynomialFunction:
+    """A MultivariatePolynomialFunction of one dimension (coefficients c0 + c1 x + ... + cn x^n)."""
+    dim = _scalar(element, "dimension", 0.0)
+    if dim != 1:
+        raise ValueError(f"has <dimension> {dim:g}; o2m reads a MultivariatePolynomialFunction of one "
+                         "dimension only (its input here is one coordinate)")
+    c = _numbers(element, "coefficients")
+    if c is None or c.size == 0:
+        raise ValueError("MultivariatePolynomialFunction has no <coefficients>")
+    order = _scalar(element, "order", float(c.size - 1))
+    if order != c.size - 1:
+        raise ValueError(f"has <order> {order:g} but {c.size} coefficients (one dimension needs order + 1)")
+    return PolynomialFunction(c[::-1].copy(), **meta)
+
+
 def parse_function(element) -> Function:
     """Build the Function an OpenSim 4.x function element (lxml element; tag = type) describes.
 
@@ -674,6 +691,8 @@ def parse_function(element) -> Function:
         if tag == "PolynomialFunction":
             c = _numbers(element, "coefficients")
             return PolynomialFunction(np.ones(1) if c is None else c, **meta)
+        if tag == "MultivariatePolynomialFunction":
+            return _univariate_polynomial(element, meta)
         if tag in ("SimmSpline", "NaturalCubicSpline", "natCubicSpline"):
             return SimmSpline(*_xy(element), **meta)
         if tag == "PiecewiseLinearFunction":

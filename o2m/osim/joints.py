@@ -136,6 +136,29 @@ def reverse_joint(j: Joint) -> Joint | None:
                  [], flipped(j.translations, "translation"), j.coordinates, j.element, reversed=True)
 
 
+def loop_welds(joints: list[Joint]) -> list[Joint]:
+    """The WeldJoints of ``joints`` that close a loop of joints, to hold as weld constraints.
+
+    OpenSim's multibody graph cuts each loop at one of its joints and closes it with a constraint;
+    every choice gives the same motion. o2m keeps a spanning tree of the other joints first
+    (document order) and cuts at a WeldJoint, which a MuJoCo weld equality holds exactly; a loop
+    of other joints alone is left for the builder to refuse."""
+    root: dict[str, str] = {}
+
+    def find(body: str) -> str:
+        while root.setdefault(body, body) != body:
+            body = root[body]
+        return body
+
+    cut = []
+    for j in sorted(joints, key=lambda j: j.type == "WeldJoint"):  # stable: document order within each kind
+        a, b = find(j.parent), find(j.child)
+        if a == b and j.type == "WeldJoint":
+            cut.append(j)
+        root[a] = b
+    return [j for j in joints if any(j is c for c in cut)]
+
+
 def orient_joints(joints: list[Joint], doc: OsimDocument) -> list[Joint]:
     """``joints`` (same order), each reversed whose child is reached from ground before its parent.
 

@@ -8,7 +8,7 @@ from functools import cache
 from o2m.osim import runtime
 
 __all__ = [
-    "BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MUSCLE_TYPES", "PATH_TYPES",
+    "BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MUSCLE_TYPES", "PATH_TYPES", "default_coordinates",
     "opensim_typenames", "renamed_type", "set_of_type",
 ]
 
@@ -69,3 +69,14 @@ def set_of_type(tag: str) -> str:
         if obj is not None and getattr(opensim, base).safeDownCast(obj) is not None:
             return set_tag
     return "ComponentSet"
+
+
+@cache
+def default_coordinates(tag: str) -> tuple[str, ...]:
+    """The names of the coordinates OpenSim gives a joint of type ``tag`` whose document lists none
+    (``_coord_0``, ...; none for a CustomJoint, whose SpatialTransform names them, or a non-joint)."""
+    if set_of_type(tag) != "JointSet":
+        return ()
+    opensim = runtime.opensim()
+    joint = opensim.Joint.safeDownCast(opensim.OpenSimObject.newInstanceOfType(tag))
+    return tuple(joint.get_coordinates(i).getName() for i in range(joint.numCoordinates()))

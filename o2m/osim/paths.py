@@ -12,7 +12,7 @@ from lxml import etree
 
 from o2m.osim.functions import Function, parse_function
 from o2m.osim.kinds import MUSCLE_TYPES, PATH_TYPES
-from o2m.osim.skeleton import SkeletonReader, _floats
+from o2m.osim.skeleton import FRAME_TYPES, SkeletonReader, _floats
 from o2m.transforms import Transform, body_fixed_xyz
 
 #: Path actuators and forces whose GeometryPath o2m turns into a MuJoCo spatial tendon.
@@ -96,7 +96,7 @@ def read_point(reader: SkeletonReader, el: etree._Element, coords: dict[str, flo
     doc = reader.doc
     body, x_frame, _ = reader.socket_frame(el, "socket_parent_frame")
     if el.tag in ("PathPoint", "ConditionalPathPoint"):
-        loc = _floats(el.find("location"), 3, doc, "location") if el.find("location") is not None else np.zeros(3)
+        loc = _floats(el.find("location"), 3, doc, "location", np.zeros(3))
         point = PathPoint(el.get("name"), body, x_frame.apply(loc), el)
         if el.tag == "ConditionalPathPoint":
             cname = _coordinate_name(reader, el.find("socket_coordinate"))
@@ -133,25 +133,23 @@ def read_wrap_objects(reader: SkeletonReader) -> dict[str, WrapObject]:
     """Every wrap object of every body (and ground), by name."""
     doc = reader.doc
     out: dict[str, WrapObject] = {}
-    for owner in list(reader.model.iter("Body", "Ground")):
+    for owner in list(reader.model.iter(*FRAME_TYPES)):
+        if owner.tag not in ("Body", "Ground") and owner.find("WrapObjectSet/objects/*") is None:
+            continue  # a frame holds wrap objects too (OpenSim 4 moved the set from Body to Frame)
         body, x_body, _ = reader.frame(owner)
         for el in owner.iterfind("WrapObjectSet/objects/*"):
             if not isinstance(el.tag, str):
                 continue
             if el.tag not in WRAP_TYPES:
                 raise doc.error(el, "is not a wrap object o2m knows")
-            rot = body_fixed_xyz(_floats(el.find("xyz_body_rotation"), 3, doc, "xyz_body_rotation")) \
-                if el.find("xyz_body_rotation") is not None else np.eye(3)
-            pos = _floats(el.find("translation"), 3, doc, "translation") if el.find("translation") is not None \
-                else np.zeros(3)
+            rot = body_fixed_xyz(_floats(el.find("xyz_body_rotation"), 3, doc, "xyz_body_rotation", np.zeros(3)))
+            pos = _floats(el.find("translation"), 3, doc, "translation", np.zeros(3))
             w = WrapObject(el.get("name"), el.tag[4:].lower(), body, x_body @ Transform(rot, pos), element=el)
             w.quadrant = _quadrant(doc, el)
             w.active = (el.findtext("active") or "true").strip().lower() != "false"
             for prop in ("radius", "length", "inner_radius", "outer_radius"):
-                if el.find(prop) is not None:
-                    setattr(w, prop, float(_floats(el.find(prop), 1, doc, prop)[0]))
-            if el.find("dimensions") is not None:
-                w.dimensions = _floats(el.find("dimensions"), 3, doc, "dimensions")
+                setattr(w, prop, float(_floats(el.find(prop), 1, doc, prop, (getattr(w, prop),))[0]))
+            w.dimensions = _floats(el.find("dimensions"), 3, doc, "dimensions", w.dimensions)
             if w.name in out:
                 raise doc.error(el, "is a second wrap object with this name")
             out[w.name] = w

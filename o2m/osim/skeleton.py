@@ -17,7 +17,7 @@ from lxml import etree
 from o2m.errors import UnsupportedElementError
 from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.functions import Function, parse_function
-from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, orient_joints
+from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, loop_welds, orient_joints
 from o2m.osim.kinds import BODY_CONSTRAINTS, PATH_TYPES, opensim_typenames, set_of_type
 from o2m.osim.names import CoordinateNames
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
@@ -40,12 +40,20 @@ JOINT_AXES: dict[str, list[tuple[str, tuple[float, float, float]]]] = {
 #: number of coordinates.
 SURFACE_JOINTS = {"EllipsoidJoint": 3, "ScapulothoracicJoint": 4}
 SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"} | frozenset(SURFACE_JOINTS)
+#: The frame types a socket, a wrap object or attached geometry may name (:meth:`SkeletonReader.frame`).
+FRAME_TYPES = ("Body", "Ground", "PhysicalOffsetFrame", "StationDefinedFrame")
 #: The six axes of a CustomJoint's SpatialTransform.
 TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
 
 
-def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str) -> np.ndarray:
+def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str,
+            default: tuple[float, ...] | np.ndarray | None = None) -> np.ndarray:
+    """Property element ``el`` as n floats; ``default`` (when given) for an absent or empty one, as
+    OpenSim keeps a property's default when its element holds no value ("Failed to read ... the
+    data have been ignored")."""
     if el is None or not (el.text or "").strip():
+        if default is not None:
+            return np.array(default, dtype=float)
         raise doc.error(el.getparent() if el is not None else doc.model, f"lacks <{what}>")
     try:
         vals = np.array([float(v) for v in el.text.split()])
@@ -65,6 +73,10 @@ def _bool(el: etree._Element | None, default: bool = False) -> bool:
     if el is None or el.text is None:
         return default
     return el.text.strip().lower() in ("true", "1")
+
+
+def _zero_function() -> Function:
+    return parse_function(etree.fromstring("<Constant name=\"function\"><value>0</value></Constant>"))
 
 
 def _identity_function() -> Function:
@@ -231,13 +243,57 @@ class SkeletonReader:
             body, x_parent, _ = self.frame(self.doc.resolve(sock), _depth + 1)
             t = el.find("translation")
             o = el.find("orientation")
-            trans = _floats(t, 3, self.doc, "translation") if t is not None else np.zeros(3)
-            orient = _floats(o, 3, self.doc, "orientation") if o is not None else np.zeros(3)
+            trans = _floats(t, 3, self.doc, "translation", np.zeros(3))
+            orient = _floats(o, 3, self.doc, "orientation", np.zeros(3))
             out = (body, x_parent @ Transform(body_fixed_xyz(orient), trans), el.get("name"))
+        elif el.tag == "StationDefinedFrame":
+            out = self.station_defined_frame(el, _depth)
         else:
-            raise self.doc.error(el, "is used as a frame but is not a Body, Ground or PhysicalOffsetFrame")
+            raise self.doc.error(el, "is used as a frame but is not a Body, Ground, PhysicalOffsetFrame or "
+                                     "StationDefinedFrame")
         self._frames[key] = out
         return out
+
+    def station(self, el: etree._Element, socket: str, _depth: int) -> tuple[str, np.ndarray]:
+        """(body, position (3,) m in it) of the Station or Marker that socket ``socket`` of ``el`` names."""
+        sock = el.find(socket)
+        if sock is None:
+            raise self.doc.error(el, f"has no <{socket}>")
+        st = self.doc.resolve(sock)
+        if st.tag not in ("Station", "Marker"):
+            raise self.doc.error(el, f"<{socket}> names a <{st.tag}>, not a Station or Marker")
+        parent = st.find("socket_parent_frame")
+        if parent is None:
+            raise self.doc.error(st, "has no <socket_parent_frame>")
+        body, x, _ = self.frame(self.doc.resolve(parent), _depth + 1)
+        return body, x.apply(_floats(st.find("location"), 3, self.doc, "location", np.zeros(3)))
+
+    def station_defined_frame(self, el: etree._Element, _depth: int) -> tuple[str, Transform, str]:
+        """A StationDefinedFrame as OpenSim 4.6 builds it: ``ab_axis`` (default +x) along b - a,
+        ``ab_x_ac_axis`` (default +y) along (b - a) x (c - a), the third axis completing a
+        right-handed frame, its origin at ``origin_point``; all four stations on one body."""
+        ends = [self.station(el, f"socket_{s}", _depth) for s in ("point_a", "point_b", "point_c", "origin_point")]
+        bodies = {b for b, _ in ends}
+        if len(bodies) != 1:
+            raise self.doc.error(el, f"has stations on several bodies ({', '.join(sorted(bodies))})")
+        a, b, c, origin = (p for _, p in ends)
+        ab, ab_x_ac = b - a, np.cross(b - a, c - a)
+        if np.linalg.norm(ab) < 1e-12 or np.linalg.norm(ab_x_ac) < 1e-12:
+            raise self.doc.error(el, "has stations a, b and c on one line: they define no frame")
+        rot = np.zeros((3, 3))
+        axes = []
+        for prop, default, vec in (("ab_axis", "+x", ab), ("ab_x_ac_axis", "+y", ab_x_ac)):
+            text = (el.findtext(prop) or "").strip() or default
+            if text not in ("+x", "-x", "+y", "-y", "+z", "-z", "x", "y", "z"):
+                raise self.doc.error(el, f"<{prop}> is '{text}', not one of +x, -x, +y, -y, +z, -z")
+            k = "xyz".index(text[-1])
+            rot[:, k] = (-1.0 if text[0] == "-" else 1.0) * vec / np.linalg.norm(vec)
+            axes.append(k)
+        if axes[0] == axes[1]:
+            raise self.doc.error(el, "has <ab_axis> and <ab_x_ac_axis> along one axis")
+        k = 3 - sum(axes)
+        rot[:, k] = np.cross(rot[:, (k + 1) % 3], rot[:, (k + 2) % 3])
+        return ends[0][0], Transform(rot, origin), el.get("name")
 
     def socket_frame(self, owner: etree._Element, socket: str) -> tuple[str, Transform, str]:
         sock = owner.find(socket)
@@ -255,9 +311,8 @@ class SkeletonReader:
             raise self.doc.error(el, "has a line direction of zero length")
         on_line = el.find("point_on_line")
         on_follower = el.find("point_on_follower")
-        line_point = _floats(on_line, 3, self.doc, "point_on_line") if on_line is not None else np.zeros(3)
-        follower_point = _floats(on_follower, 3, self.doc, "point_on_follower") if on_follower is not None \
-            else np.zeros(3)
+        line_point = _floats(on_line, 3, self.doc, "point_on_line", np.zeros(3))
+        follower_point = _floats(on_follower, 3, self.doc, "point_on_follower", np.zeros(3))
         return PointOnLine(el.get("name", ""), line_body, x_line.apply(line_point), x_line.rot @ (direction / norm),
                            follower, x_follow.apply(follower_point), el)
 
@@ -270,12 +325,12 @@ class SkeletonReader:
         for i in (1, 2):
             body, x, _ = self.socket_frame(el, f"socket_body_{i}")
             loc = el.find(f"location_body_{i}")
-            point = _floats(loc, 3, self.doc, f"location_body_{i}") if loc is not None else np.zeros(3)
+            point = _floats(loc, 3, self.doc, f"location_body_{i}", np.zeros(3))
             ends.append((body, Transform(pos=x.apply(point))))
         distance = None
         if el.tag == "ConstantDistanceConstraint":
             d = el.find("constant_distance")
-            distance = float(_floats(d, 1, self.doc, "constant_distance")[0]) if d is not None else 1.0
+            distance = float(_floats(d, 1, self.doc, "constant_distance", (1.0,))[0])
             if distance < 0:
                 raise self.doc.error(el, f"has a negative <constant_distance> {distance:g}")
         return BodyConstraint(el.get("name", ""), el.tag, *ends[0], *ends[1], distance, el)
@@ -302,26 +357,22 @@ class SkeletonReader:
             raise self.doc.error(el, "is not an element OpenSim 4.6 knows (misspelt, or from a plugin)")
 
     def body(self, el: etree._Element) -> Body:
-        mass = float(_floats(el.find("mass"), 1, self.doc, "mass")[0]) if el.find("mass") is not None else 0.0
+        mass = float(_floats(el.find("mass"), 1, self.doc, "mass", (0.0,))[0])
         if mass < 0:
             raise self.doc.error(el, f"has negative mass {mass}")
-        com = _floats(el.find("mass_center"), 3, self.doc, "mass_center") if el.find("mass_center") is not None \
-            else np.zeros(3)
+        com = _floats(el.find("mass_center"), 3, self.doc, "mass_center", np.zeros(3))
         inertia = np.zeros((3, 3))
-        iel = el.find("inertia")
-        if iel is not None:
-            ixx, iyy, izz, ixy, ixz, iyz = _floats(iel, 6, self.doc, "inertia")
-            inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        ixx, iyy, izz, ixy, ixz, iyz = _floats(el.find("inertia"), 6, self.doc, "inertia", np.zeros(6))
+        inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
         return Body(el.get("name"), mass, com, inertia, el)
 
     def coordinate(self, el: etree._Element, joint: str) -> Coordinate:
         rng = el.find("range")
         # OpenSim 4.x omits properties at their default: range [-10, 10], not clamped, not locked.
-        lo, hi = _floats(rng, 2, self.doc, "range") if rng is not None else (-10.0, 10.0)
+        lo, hi = _floats(rng, 2, self.doc, "range", (-10.0, 10.0))
         if lo > hi:
             raise self.doc.error(el, f"has range [{lo}, {hi}] with minimum above maximum")
-        dv = el.find("default_value")
-        default = float(_floats(dv, 1, self.doc, "default_value")[0]) if dv is not None else 0.0
+        default = float(_floats(el.find("default_value"), 1, self.doc, "default_value", (0.0,))[0])
         return Coordinate(
             name=el.get("name"), joint=joint, default=default, range=(float(lo), float(hi)),
             clamped=_bool(el.find("clamped"), False), locked=_bool(el.find("locked")),
@@ -330,8 +381,9 @@ class SkeletonReader:
             element=el,
         )
 
-    def function_of(self, holder: etree._Element) -> Function:
-        """The function element inside ``holder`` (first child element that is a function)."""
+    def function_of(self, holder: etree._Element, default: Function | None = None) -> Function:
+        """The function element inside ``holder`` (first child element that is a function);
+        ``default`` when it holds none (an error when None)."""
         for child in holder:
             if isinstance(child.tag, str) and child.tag[:1].isupper():
                 try:
@@ -343,6 +395,8 @@ class SkeletonReader:
                         (e for e in child.iter(exc.element or child.tag)), child)
                     msg = str(exc).split("> ", 1)[-1]
                     raise self.doc.error(bad, f"{msg}{where}") from None
+        if default is not None:
+            return default
         raise self.doc.error(holder, "holds no function")
 
     def joint(self, el: etree._Element, coords: dict[str, Coordinate]) -> Joint:
@@ -392,7 +446,7 @@ class SkeletonReader:
                 if cname is not None and cname not in local:
                     raise self.doc.error(ta, f"uses coordinate '{cname}', which its joint does not define")
                 cname = local[cname] if cname is not None else None
-                func = self.function_of(ta)
+                func = self.function_of(ta, _zero_function())  # OpenSim's default: Constant 0
                 axobj = TransformAxis(axname, kind, axis / norm, cname, func, ta)
                 (rotations if kind == "rotation" else translations).append(axobj)
             rotations.sort(key=lambda a: a.name)
@@ -422,11 +476,10 @@ class SkeletonReader:
         if el.tag == "EllipsoidJoint":
             surface = EllipsoidSurface(radii, Transform(), Transform())
         else:
-            origin = el.find("scapula_winging_axis_origin")
-            direction = el.find("scapula_winging_axis_direction")
-            ox, oy = _floats(origin, 2, self.doc, "scapula_winging_axis_origin") if origin is not None else (0.0, 0.0)
-            wd = float(_floats(direction, 1, self.doc, "scapula_winging_axis_direction")[0]) \
-                if direction is not None else 0.0
+            ox, oy = _floats(el.find("scapula_winging_axis_origin"), 2, self.doc, "scapula_winging_axis_origin",
+                             (0.0, 0.0))
+            wd = float(_floats(el.find("scapula_winging_axis_direction"), 1, self.doc,
+                               "scapula_winging_axis_direction", (0.0,))[0])
             quarter = axis_angle_matrix(np.array(_Z), np.pi / 2)
             wing = np.array([-np.sin(wd), np.cos(wd), 0.0])
             surface = EllipsoidSurface(radii[[1, 0, 2]], Transform(quarter), Transform(quarter.T), wing,
@@ -451,10 +504,13 @@ class SkeletonReader:
             bodies[b.name] = b
         coords: dict[str, Coordinate] = {}
         self.names = self.coordinate_names(self.set_objects("JointSet"))
-        joints = orient_joints([self.joint(el, coords) for el in self.set_objects("JointSet")], doc)
+        joints = [self.joint(el, coords) for el in self.set_objects("JointSet")]
+        cut = loop_welds(joints)
+        body_constraints = [BodyConstraint(j.name, "WeldConstraint", j.parent, j.parent_frame, j.child,
+                                           j.child_frame, None, j.element) for j in cut]
+        joints = orient_joints([j for j in joints if not any(j is c for c in cut)], doc)
         couplers: list[Coupler] = []
         point_on_lines: list[PointOnLine] = []
-        body_constraints: list[BodyConstraint] = []
         for el in self.set_objects("ConstraintSet"):
             self.check_known(el)
             enforced = _bool(el.find("isEnforced"), True) and not _bool(el.find("isDisabled"), False)
@@ -490,13 +546,12 @@ class SkeletonReader:
                 skipped.append(Skipped(el.tag, el.get("name", ""), "not a Marker"))
                 continue
             body, x, _ = self.socket_frame(el, "socket_parent_frame")
-            loc = _floats(el.find("location"), 3, doc, "location") if el.find("location") is not None \
-                else np.zeros(3)
+            loc = _floats(el.find("location"), 3, doc, "location", np.zeros(3))
             markers.append(Marker(el.get("name"), body, x.apply(loc), el))
         geometry: list[Geometry] = []
         for holder in self.model.iter("attached_geometry"):
             owner = holder.getparent()
-            if owner.tag not in ("Body", "Ground", "PhysicalOffsetFrame"):
+            if owner.tag not in FRAME_TYPES:
                 continue
             body, x, fname = self.frame(owner)
             for g in holder:
@@ -512,7 +567,7 @@ class SkeletonReader:
                     reason += " (its path too: no tendon, no force)"
                 skipped.append(Skipped(el.tag, el.get("name", ""), reason))
         grav = self.model.find("gravity")
-        gravity = _floats(grav, 3, doc, "gravity") if grav is not None else np.array([0.0, -9.80665, 0.0])
+        gravity = _floats(grav, 3, doc, "gravity", (0.0, -9.80665, 0.0))
         return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,
                         markers, geometry, skipped, doc, point_on_lines, body_constraints, self.names)
 

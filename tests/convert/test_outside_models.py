@@ -320,3 +320,292 @@ def test_a_coupled_expression_bushing_is_skipped_with_the_reason(tmp_path):
     conv = convert(path, tmp_path / "out", convert_options())
     why = next(s.reason for s in conv.report.skipped if s.element == "ExpressionBasedBushingForce")
     assert why.startswith("<Mx_expression> '10*theta_x+3*theta_y' is not a constant times theta_x")
+
+
+def _bare_document(bodies: str, joints: str, ground: bool = True) -> str:
+    """A 4.x document with ``bodies`` and ``joints`` (XML), a <Ground> only when ``ground``."""
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000"><Model name="bare">
+{'<Ground name="ground"/>' if ground else ''}
+<BodySet name="bodyset"><objects>{bodies}</objects></BodySet>
+<JointSet name="jointset"><objects>{joints}</objects></JointSet>
+</Model></OpenSimDocument>
+"""
+
+
+def _pin(name: str, parent: str, child: str, coordinates: str = "", offset: str = "0 -0.3 0") -> str:
+    parent_path = "/ground" if parent == "ground" else f"/bodyset/{parent}"
+    return f"""<PinJoint name="{name}"><socket_parent_frame>{parent}_offset</socket_parent_frame>
+<socket_child_frame>{child}_offset</socket_child_frame>{coordinates}<frames>
+<PhysicalOffsetFrame name="{parent}_offset"><socket_parent>{parent_path}</socket_parent>
+<translation>{offset}</translation></PhysicalOffsetFrame>
+<PhysicalOffsetFrame name="{child}_offset"><socket_parent>/bodyset/{child}</socket_parent></PhysicalOffsetFrame>
+</frames></PinJoint>"""
+
+
+def test_empty_property_elements_keep_opensims_defaults(tmp_path):
+    """OpenSim ignores a property element that holds no value ("Failed to read ... ignored") and
+    keeps the default; o2m refused it ("lacks <default_value>") before."""
+    body = """<Body name="rod"><mass>1</mass><mass_center></mass_center><inertia>0.1 0.1 0.1 0 0 0</inertia></Body>"""
+    coord = """<coordinates><Coordinate name="rz"><default_value></default_value><range> </range>
+</Coordinate></coordinates>"""
+    src = tmp_path / "empty.osim"
+    src.write_text(_bare_document(body, _pin("pin", "ground", "rod", coord)))
+    conv = convert(src, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert m.qpos0[m.joint("rz").qposadr[0]] == 0.0
+    assert np.allclose(m.body_ipos[m.body("rod").id], 0.0)
+    rep = compare_kinematics(src, conv.xml, n_poses=10)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+
+
+def test_a_model_without_ground_or_coordinates_gets_opensims(tmp_path):
+    """No <Ground> element and joints that list no coordinates: OpenSim gives the model its ground
+    and each joint coordinates named ``_coord_0`` ...; two joints sharing that name convert as
+    ``<joint>__coord_0`` (shared coordinate names), the bodies where OpenSim puts them."""
+    bodies = "".join(f'<Body name="{b}"><mass>1</mass><mass_center>0 -0.1 0</mass_center>'
+                     f'<inertia>0.01 0.01 0.01 0 0 0</inertia></Body>' for b in ("upper", "lower"))
+    src = tmp_path / "bare.osim"
+    src.write_text(_bare_document(bodies, _pin("hip", "ground", "upper") + _pin("knee", "upper", "lower"),
+                                  ground=False))
+    conv = convert(src, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert {m.joint(i).name for i in range(m.njnt)} == {"hip__coord_0", "knee__coord_0"}
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+    # an empty <coordinates/> list is not an absent one: OpenSim refuses it ("more mobilities than
+    # declared Coordinates"), and so does o2m
+    src.write_text(src.read_text().replace('<PinJoint name="knee">', '<PinJoint name="knee"><coordinates/>'))
+    with pytest.raises(UnsupportedElementError, match="has 0 coordinates; a PinJoint has 1"):
+        convert(src, tmp_path / "out2", convert_options())
+
+
+def test_a_weld_joint_closing_a_loop_becomes_a_weld_equality(tmp_path):
+    """ground -pin-> a -pin-> b, and b also welded to ground where the pins put it at q = 0: the
+    weld closes a loop (a body the child of two joints, refused before). It becomes a weld
+    equality, met at q = 0 and violated when a pin turns; the two pins stay in the tree."""
+    bodies = "".join(f'<Body name="{b}"><mass>1</mass><mass_center>0 -0.1 0</mass_center>'
+                     f'<inertia>0.01 0.01 0.01 0 0 0</inertia></Body>' for b in ("a", "b"))
+    coords = '<coordinates><Coordinate name="{}"/></coordinates>'
+    weld = """<WeldJoint name="tie"><socket_parent_frame>tie_offset</socket_parent_frame>
+<socket_child_frame>/bodyset/b</socket_child_frame><frames><PhysicalOffsetFrame name="tie_offset">
+<socket_parent>/ground</socket_parent><translation>0 0.3 0</translation></PhysicalOffsetFrame></frames></WeldJoint>"""
+    joints = _pin("p1", "ground", "a", coords.format("q1"), "0 0.6 0") \
+        + _pin("p2", "a", "b", coords.format("q2"), "0 -0.3 0") + weld
+    src = tmp_path / "loop.osim"
+    src.write_text(_bare_document(bodies, joints))
+    conv = convert(src, tmp_path / "out", convert_options())
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert m.neq == 1 and m.eq_type[0] == mujoco.mjtEq.mjEQ_WELD
+    assert m.body_parentid[m.body("b").id] == m.body("a").id
+    d = mujoco.MjData(m)
+
+    def violation(q1: float) -> float:
+        d.qpos[:] = 0.0
+        d.qpos[m.joint("q1").qposadr[0]] = q1
+        mujoco.mj_forward(m, d)
+        return float(np.abs(d.efc_pos[d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY]).max())
+
+    assert violation(0.0) < 1e-12
+    assert violation(0.4) > 0.05
+
+
+def _station_frame_model() -> str:
+    """Two bodies hinged at StationDefinedFrames built from markers in the bodies' <components>
+    (the parent's axes at their defaults, the child's given), and a muscle over a WrapCylinder held
+    by a PhysicalOffsetFrame, as OpenSim Creator writes them."""
+    markers = {"thigh": [("a", "0.01 0.02 0.0"), ("b", "0.03 0.15 0.01"), ("c", "0.02 0.01 0.12"),
+                         ("o", "0.0 -0.3 0.02")],
+               "shank": [("a", "0.0 0.0 0.0"), ("b", "0.01 0.1 0.0"), ("c", "0.1 0.0 0.02"), ("o", "0.0 0.25 0.0")]}
+
+    def frame(body: str, name: str, axes: str) -> str:
+        pts = "".join(f"<socket_{s}>/bodyset/{body}/{m}</socket_{s}>"
+                      for s, m in (("point_a", "a"), ("point_b", "b"), ("point_c", "c"), ("origin_point", "o")))
+        shape = (f'<attached_geometry><Sphere name="{name}_ball"><socket_frame>..</socket_frame><radius>0.01</radius>'
+                 '</Sphere></attached_geometry>')
+        return f'<StationDefinedFrame name="{name}">{shape}{pts}{axes}</StationDefinedFrame>'
+
+    def body(name: str, extra: str) -> str:
+        ms = "".join(f'<Marker name="{m}"><socket_parent_frame>..</socket_parent_frame>'
+                     f'<location>{loc}</location></Marker>'
+                     for m, loc in markers[name])
+        return (f'<Body name="{name}"><components>{ms}{extra}</components><mass>1</mass>'
+                f'<mass_center>0 -0.1 0</mass_center><inertia>0.01 0.01 0.01 0 0 0</inertia></Body>')
+
+    wrap_frame = """<PhysicalOffsetFrame name="wrap_frame"><WrapObjectSet><objects><WrapCylinder name="roll">
+<radius>0.03</radius><length>0.2</length><quadrant>+x</quadrant></WrapCylinder></objects></WrapObjectSet>
+<socket_parent>..</socket_parent><translation>0 -0.3 0</translation></PhysicalOffsetFrame>"""
+    thigh = body("thigh", frame("thigh", "knee_frame", "") + wrap_frame)
+    shank = body("shank", frame("shank", "shank_frame", "<ab_axis>-y</ab_axis><ab_x_ac_axis>+z</ab_x_ac_axis>"))
+    joints = """<PinJoint name="hip"><socket_parent_frame>/ground</socket_parent_frame>
+<socket_child_frame>/bodyset/thigh</socket_child_frame><coordinates><Coordinate name="hip_q"><range>-1 1</range>
+</Coordinate>
+</coordinates></PinJoint>
+<PinJoint name="knee"><socket_parent_frame>/bodyset/thigh/knee_frame</socket_parent_frame>
+<socket_child_frame>/bodyset/shank/shank_frame</socket_child_frame><coordinates><Coordinate name="knee_q">
+<range>-1.5 0.5</range></Coordinate></coordinates></PinJoint>"""
+    muscle = """<Thelen2003Muscle name="quad"><GeometryPath name="path"><PathPointSet><objects>
+<PathPoint name="p1"><socket_parent_frame>/bodyset/thigh</socket_parent_frame><location>0.04 -0.1 0</location>
+</PathPoint>
+<PathPoint name="p2"><socket_parent_frame>/bodyset/shank</socket_parent_frame><location>0.04 0.15 0</location>
+</PathPoint>
+</objects></PathPointSet><PathWrapSet><objects><PathWrap name="w"><wrap_object>roll</wrap_object></PathWrap></objects>
+</PathWrapSet></GeometryPath><max_isometric_force>100</max_isometric_force><optimal_fiber_length>0.1</optimal_fiber_length>
+<tendon_slack_length>0.2</tendon_slack_length></Thelen2003Muscle>"""
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40600"><Model name="stations"><Ground name="ground"/>
+<BodySet name="bodyset"><objects>{thigh}{shank}</objects></BodySet>
+<JointSet name="jointset"><objects>{joints}</objects></JointSet>
+<ForceSet name="forceset"><objects>{muscle}</objects></ForceSet>
+</Model></OpenSimDocument>
+"""
+
+
+def test_station_defined_frames_and_wraps_on_frames_convert_as_in_opensim(tmp_path):
+    """A joint between StationDefinedFrames (refused before: "not a Body, Ground or
+    PhysicalOffsetFrame") puts the bodies where OpenSim does; a wrap object held by a frame other
+    than a body (unknown to the muscle before) becomes a cylinder at that frame."""
+    src = tmp_path / "stations.osim"
+    src.write_text(_station_frame_model())
+    conv = convert(src, tmp_path / "out", convert_options())
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    roll = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER
+            and m.geom_bodyid[g] == m.body("thigh").id]
+    assert len(roll) == 1 and np.allclose(m.geom_size[roll[0]][0], 0.03)
+    # geometry attached to a StationDefinedFrame is drawn at its origin (on the body its stations are on)
+    ball = [g for g in range(m.ngeom) if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+            and m.geom_bodyid[g] == m.body("thigh").id]
+    assert len(ball) == 1 and np.allclose(m.geom_pos[ball[0]], [0.0, -0.3, 0.02], atol=1e-12)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    os_model = osim.Model(str(src))
+    state = os_model.initSystem()
+    quad = osim.Muscle.safeDownCast(os_model.getForceSet().get("quad"))
+    assert d.ten_length[m.tendon("quad").id] == pytest.approx(quad.getLength(state), abs=2e-3)
+
+
+def _coupler_model(function: str) -> str:
+    """A block on two sliders (x, then y), y = ``function``(x) by a CoordinateCouplerConstraint."""
+    slider = """<SliderJoint name="{j}"><socket_parent_frame>{p}</socket_parent_frame>
+<socket_child_frame>/bodyset/{c}</socket_child_frame><coordinates><Coordinate name="{q}"><range>-0.5 0.5</range>
+</Coordinate></coordinates>{frames}</SliderJoint>"""
+    turned = """<frames><PhysicalOffsetFrame name="up"><socket_parent>/bodyset/cart</socket_parent>
+<orientation>0 0 1.5707963267948966</orientation></PhysicalOffsetFrame></frames>"""
+    bodies = "".join(f'<Body name="{b}"><mass>1</mass><inertia>0.01 0.01 0.01 0 0 0</inertia></Body>'
+                     for b in ("cart", "block"))
+    joints = slider.format(j="sx", p="/ground", c="cart", q="x", frames="") \
+        + slider.format(j="sy", p="up", c="block", q="y", frames=turned)
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000"><Model name="coupled"><Ground name="ground"/>
+<BodySet name="bodyset"><objects>{bodies}</objects></BodySet>
+<JointSet name="jointset"><objects>{joints}</objects></JointSet>
+<ConstraintSet name="constraintset"><objects><CoordinateCouplerConstraint name="couple">
+<coupled_coordinates_function>{function}</coupled_coordinates_function>
+<independent_coordinate_names>x</independent_coordinate_names><dependent_coordinate_name>y</dependent_coordinate_name>
+</CoordinateCouplerConstraint></objects></ConstraintSet>
+</Model></OpenSimDocument>
+"""
+
+
+def test_a_one_dimensional_multivariate_polynomial_couples_as_in_opensim(tmp_path):
+    """MultivariatePolynomialFunction (OpenSim 4.4+; coefficients from the lowest power up) was an
+    unknown function type; of one dimension it is a polynomial of the independent coordinate."""
+    poly = ("<MultivariatePolynomialFunction><coefficients>0.1 0.5 2</coefficients><dimension>1</dimension>"
+            "<order>2</order></MultivariatePolynomialFunction>")
+    src = tmp_path / "coupled.osim"
+    src.write_text(_coupler_model(poly))
+    conv = convert(src, tmp_path / "out", convert_options())
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9, rep.summary()
+    two = poly.replace("<dimension>1", "<dimension>2")
+    src.write_text(_coupler_model(two))
+    with pytest.raises(UnsupportedElementError, match="MultivariatePolynomialFunction.*<dimension> 2"):
+        convert(src, tmp_path / "out2", convert_options())
+
+
+def test_point_to_point_and_activation_coordinate_actuators_push_as_in_opensim(tmp_path):
+    """PointToPointActuator and ActivationCoordinateActuator were "not converted yet": a motor on a
+    two-point tendon and a motor with first-order activation. At a pose, with OpenSim's actuation
+    (the point-to-point force overridden, the activation state set) and MuJoCo's (ctrl, act), the
+    accelerations agree, gravity off."""
+    m = osim.Model()
+    m.setName("actuated")
+    m.setGravity(osim.Vec3(0))
+    block = osim.Body("block", 2.0, osim.Vec3(0), osim.Inertia(0.01))
+    arm = osim.Body("arm", 1.0, osim.Vec3(0, -0.2, 0), osim.Inertia(0.02, 0.005, 0.02))
+    for b in (block, arm):
+        m.addBody(b)
+    m.addJoint(osim.SliderJoint("slide", m.getGround(), osim.Vec3(0), osim.Vec3(0), block, osim.Vec3(0), osim.Vec3(0)))
+    m.addJoint(osim.PinJoint("pin", m.getGround(), osim.Vec3(0, 1, 0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0)))
+    p2p = osim.PointToPointActuator("arm", "block")
+    p2p.setName("push")
+    p2p.set_pointA(osim.Vec3(-0.5, 0.3, 0.1))
+    p2p.set_pointB(osim.Vec3(0.05, 0.02, 0))
+    p2p.setOptimalForce(40.0)
+    m.addForce(p2p)
+    act = osim.ActivationCoordinateActuator()
+    act.setName("drive")
+    act.set_coordinate("pin_coord_0")
+    act.setOptimalForce(3.0)
+    act.set_activation_time_constant(0.03)
+    m.addForce(act)
+    m.finalizeConnections()
+    src = tmp_path / "actuated.osim"
+    m.printToXML(str(src))
+    conv = convert(src, tmp_path / "out", convert_options())
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    drive = mj.actuator("drive").id
+    assert mj.actuator_dyntype[drive] == mujoco.mjtDyn.mjDYN_FILTER and mj.actuator_dynprm[drive][0] == 0.03
+
+    model = osim.Model(str(src))
+    state = model.initSystem()
+    q = {"slide_coord_0": 0.2, "pin_coord_0": 0.7}
+    for name, v in q.items():
+        model.getCoordinateSet().get(name).setValue(state, v)
+    push = osim.ScalarActuator.safeDownCast(model.getForceSet().get("push"))
+    push.overrideActuation(state, True)
+    push.setOverrideActuation(state, 0.6 * 40.0)
+    model.getForceSet().get("drive").setStateVariableValue(state, "activation", 0.8)
+    model.realizeAcceleration(state)
+    theirs = {n: model.getCoordinateSet().get(n).getAccelerationValue(state) for n in q}
+
+    d = mujoco.MjData(mj)
+    for name, v in q.items():
+        d.qpos[mj.joint(name).qposadr[0]] = v
+    d.ctrl[mj.actuator("push").id] = 0.6
+    d.act[mj.actuator_actadr[drive]] = 0.8
+    mujoco.mj_forward(mj, d)
+    for name, acc in theirs.items():
+        assert d.qacc[mj.joint(name).dofadr[0]] == pytest.approx(acc, rel=1e-9, abs=1e-9), name
+    assert abs(theirs["slide_coord_0"]) > 1.0 and abs(theirs["pin_coord_0"]) > 1.0
+
+
+def test_a_transform_axis_without_a_function_is_constant_zero(tmp_path):
+    """OpenSim gives a TransformAxis that holds no function a Constant 0, even one naming a
+    coordinate (which then moves nothing); o2m refused it ("holds no function") before. One axis
+    with a function keeps the body moving, so the comparison is not of a body at rest."""
+    axes = "".join(f'<TransformAxis name="{n}"><coordinates>{c}</coordinates><axis>{a}</axis>{f}</TransformAxis>'
+                   for n, c, a, f in (
+                       ("rotation1", "q", "0 0 1", ""), ("rotation2", "", "1 0 0", ""),
+                       ("rotation3", "q", "0 1 0", "<LinearFunction><coefficients>0.5 0</coefficients>"
+                                                   "</LinearFunction>"),
+                       ("translation1", "q", "1 0 0", ""), ("translation2", "", "0 1 0", ""),
+                       ("translation3", "", "0 0 1", "")))
+    joint = f"""<CustomJoint name="j"><socket_parent_frame>/ground</socket_parent_frame>
+<socket_child_frame>/bodyset/b</socket_child_frame><coordinates><Coordinate name="q"><range>-1 1</range>
+</Coordinate></coordinates><SpatialTransform>{axes}</SpatialTransform></CustomJoint>"""
+    body = ('<Body name="b"><mass>1</mass><mass_center>0.1 0.2 0</mass_center>'
+            '<inertia>0.1 0.1 0.1 0 0 0</inertia></Body>')
+    src = tmp_path / "nofunction.osim"
+    src.write_text(_bare_document(body, joint))
+    conv = convert(src, tmp_path / "out", convert_options())
+    rep = compare_kinematics(src, conv.xml, n_poses=20)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    d.qpos[m.joint("q").qposadr[0]] = 0.8
+    mujoco.mj_kinematics(m, d)
+    assert np.allclose(d.xpos[m.body("b").id], 0.0, atol=1e-12)  # no translation, the body origin stays
+    assert not np.allclose(d.xmat[m.body("b").id], np.eye(3).ravel())  # but rotation3 turns it
