@@ -182,19 +182,24 @@ def test_arm26_lengthrange_contains_other_poses(arm26, arm26_fit):
         assert lengths[:, k].max() <= p.lengthrange[1] + 1e-12, p.name
 
 
+def _assert_within_arm26_bounds(p) -> None:
+    """MuJoCo's static force of one fitted muscle within Arm26's per-muscle bounds, and its
+    reported active error what mujoco_muscle_force gives against OpenSim's forces."""
+    assert p.err_active_max_pct <= ARM26_ACTIVE_MAX_PCT, p.name
+    assert p.err_active_rms_pct <= ARM26_ACTIVE_RMS_PCT, p.name
+    assert p.err_passive_max_pct <= ARM26_PASSIVE_MAX_PCT, p.name
+    assert p.err_passive_rms_pct <= ARM26_PASSIVE_RMS_PCT, p.name
+    err = (-mujoco_muscle_force(p, p.lengths, 0.0, 1.0) - p.opensim_active) / p.force * 100
+    assert np.nanmax(np.abs(err)) == pytest.approx(p.err_active_max_pct)
+
+
 def test_arm26_force_errors(arm26_fit):
     """MuJoCo's static force against OpenSim's over each lengthrange (bounds: module docstring)."""
     for p in arm26_fit.values():
         assert p.type == "Thelen2003Muscle"
         for v in (p.err_active_max_pct, p.err_active_rms_pct, p.err_passive_max_pct, p.err_passive_rms_pct):
             assert math.isfinite(v)
-        assert p.err_active_max_pct <= ARM26_ACTIVE_MAX_PCT, p.name
-        assert p.err_active_rms_pct <= ARM26_ACTIVE_RMS_PCT, p.name
-        assert p.err_passive_max_pct <= ARM26_PASSIVE_MAX_PCT, p.name
-        assert p.err_passive_rms_pct <= ARM26_PASSIVE_RMS_PCT, p.name
-        # the reported errors are what mujoco_muscle_force gives against OpenSim's forces
-        err = (-mujoco_muscle_force(p, p.lengths, 0.0, 1.0) - p.opensim_active) / p.force * 100
-        assert np.nanmax(np.abs(err)) == pytest.approx(p.err_active_max_pct)
+        _assert_within_arm26_bounds(p)
     s = error_summary(arm26_fit)
     assert s["n"] == 6 and s["active_rms"] <= ARM26_ALL_ACTIVE_RMS_PCT
 
@@ -353,12 +358,7 @@ def test_formerly_skipped_types_fit_within_arm26_bounds(arm26, tag, tmp_path):
     assert len(r) == 6 and not r.skipped
     for p in r.values():
         assert p.type == tag
-        assert p.err_active_max_pct <= ARM26_ACTIVE_MAX_PCT, p.name
-        assert p.err_active_rms_pct <= ARM26_ACTIVE_RMS_PCT, p.name
-        assert p.err_passive_max_pct <= ARM26_PASSIVE_MAX_PCT, p.name
-        assert p.err_passive_rms_pct <= ARM26_PASSIVE_RMS_PCT, p.name
-        err = (-mujoco_muscle_force(p, p.lengths, 0.0, 1.0) - p.opensim_active) / p.force * 100
-        assert np.nanmax(np.abs(err)) == pytest.approx(p.err_active_max_pct)
+        _assert_within_arm26_bounds(p)
     if tag == "Thelen2003Muscle_Deprecated":  # (MeyerFregly's six give 5.1 %: its curves are DeGroote's)
         assert error_summary(r)["active_rms"] <= ARM26_ALL_ACTIVE_RMS_PCT
 

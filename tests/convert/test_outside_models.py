@@ -125,17 +125,23 @@ def test_path_forces_o2m_does_not_convert_are_listed_as_skipped(tmp_path):
     assert skipped.get(("ClutchedPathSpring", "clutch")) == why and skipped.get(("McKibbenActuator", "mck")) == why
 
 
-def test_the_muscle_types_once_skipped_convert(tmp_path):
-    """Delp1990Muscle_Deprecated, Thelen2003Muscle_Deprecated and MeyerFregly2016Muscle (once
-    listed as skipped) become MuJoCo muscles on their tendons, fitted to OpenSim's forces."""
+def _slider_model(name: str) -> tuple[osim.Model, osim.Body]:
+    """A model named ``name`` with one 1-kg body on a slider along ground X (range ±0.05 m)."""
     m = osim.Model()
-    m.setName("muscle_types")
+    m.setName(name)
     b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
     m.addBody(b)
     joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
     joint.upd_coordinates(0).setRangeMin(-0.05)
     joint.upd_coordinates(0).setRangeMax(0.05)
     m.addJoint(joint)
+    return m, b
+
+
+def test_the_muscle_types_once_skipped_convert(tmp_path):
+    """Delp1990Muscle_Deprecated, Thelen2003Muscle_Deprecated and MeyerFregly2016Muscle (once
+    listed as skipped) become MuJoCo muscles on their tendons, fitted to OpenSim's forces."""
+    m, b = _slider_model("muscle_types")
     types = ("Delp1990Muscle_Deprecated", "Thelen2003Muscle_Deprecated", "MeyerFregly2016Muscle")
     for i in range(len(types)):
         mus = osim.Thelen2003Muscle(f"m{i}", 200.0, 0.1, 0.2, 0.0)
@@ -167,14 +173,7 @@ def test_the_muscle_types_once_skipped_convert(tmp_path):
 def test_old_type_names_opensim_still_reads_convert_as_their_current_types(tmp_path):
     """A 4.x file may use a type's old name (``<Schutte1993Muscle>``, ``<MuscleViaPoint>``), which
     OpenSim reads as the current type: o2m converts it as OpenSim reads it, not as unknown."""
-    m = osim.Model()
-    m.setName("old_names")
-    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
-    m.addBody(b)
-    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
-    joint.upd_coordinates(0).setRangeMin(-0.05)
-    joint.upd_coordinates(0).setRangeMax(0.05)
-    m.addJoint(joint)
+    m, b = _slider_model("old_names")
     mus = osim.Thelen2003Muscle("m", 200.0, 0.1, 0.2, 0.0)  # retyped below (no Python class for Schutte)
     mus.addNewPathPoint("p1", m.getGround(), osim.Vec3(-0.3, 0, 0))
     mus.addNewPathPoint("p2", b, osim.Vec3(0, 0, 0))
