@@ -95,7 +95,7 @@ def _note_ignored_activation(m, notes: list[str]) -> None:
 
 #: DeGrooteFregly2016Muscle's and MeyerFregly2016Muscle's tanh steepness where their
 #: ``activation_dynamics_smoothing`` property is missing (the constant of the versions without it).
-MEYER_FREGLY_SMOOTHING = 0.1
+DEFAULT_ACTIVATION_SMOOTHING = 0.1
 
 
 def _other_activation_law(m, type_name: str, notes: list[str]) -> tuple[float, float]:
@@ -109,7 +109,7 @@ def _other_activation_law(m, type_name: str, notes: list[str]) -> tuple[float, f
         what = "constant time constants (da/dt = (u - a)/ta rising, (u - a)/td falling)"
     else:
         _note_ignored_activation(m, notes)
-        b = _prop(m, "activation_dynamics_smoothing", MEYER_FREGLY_SMOOTHING)
+        b = _prop(m, "activation_dynamics_smoothing", DEFAULT_ACTIVATION_SMOOTHING)
         law, params = "tanh_blend", (ta, td, b)
         what = (f"rates blended by 0.5 tanh({b:.3g} (u - a)) (da/dt = (u - a)[(f + 0.5)/(ta z) + (0.5 - f) z/td], "
                 "z = 0.5 + 1.5 a)")
@@ -207,6 +207,29 @@ def _tabulated_inverse(v_of_f, f_lo: float, f_hi: float, u: np.ndarray) -> np.nd
     return np.interp(u, v[order], f[order])
 
 
+def _thelen_fiber_velocity(af: float, flen: float, threshold: float, damping: float):
+    """Thelen's normalized fiber velocity as a function of the force-velocity multiplier, at full
+    activation and optimal length (Thelen2003Muscle::calcdlceN; Thelen2003Muscle_Deprecated's
+    calcFiberVelocity adds ``damping`` to the denominator): ``(fv - 1) / b``, ``b = 1 + fv/Af``
+    shortening, ``(2 + 2/Af)(Flen - fv)/(Flen - 1)`` lengthening, continued linearly below zero force
+    and above ``threshold · Flen`` as OpenSim extrapolates."""
+
+    def b_and_slope(fm: float, lengthening: bool) -> tuple[float, float]:
+        if not lengthening:
+            return 1.0 + fm / af + damping, 1 / af
+        return (2 + 2 / af) * (flen - fm) / (flen - 1) + damping, -(2 + 2 / af) / (flen - 1)
+
+    def dlce(fm: float) -> float:
+        if 0.0 < fm < flen * threshold:
+            return (fm - 1.0) / b_and_slope(fm, fm > 1.0)[0]
+        fm0 = 0.0 if fm <= 0.0 else threshold * flen
+        b, db = b_and_slope(fm0, fm0 != 0.0)
+        slope = 1.0 / b - (fm0 - 1.0) / (b * b) * db
+        return (fm0 - 1.0) / b + slope * (fm - fm0)
+
+    return dlce
+
+
 def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float, list[str]]:
     """OpenSim's force-velocity multiplier at full activation and optimal length, at normalized
     fiber velocities ``u`` (fiber velocity / (vmax * optimal fiber length), negative =
@@ -215,22 +238,7 @@ def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float
     notes: list[str] = []
     if type_name == "Thelen2003Muscle":
         af, flen = _prop(m, "Af"), _prop(m, "Flen")
-        thr = _prop(m, "fv_linear_extrap_threshold", 0.95)
-
-        def dlce(fm: float) -> float:  # Thelen2003Muscle::calcdlceN at a = 1, fal = 1
-            asy_e = flen
-            if 0.0 < fm < asy_e * thr:
-                b = 1.0 + fm / af if fm <= 1.0 else (2 + 2 / af) * (flen - fm) / (flen - 1)
-                return (fm - 1.0) / b
-            fm0 = 0.0 if fm <= 0.0 else thr * asy_e
-            if fm0 == 0.0:
-                b, db = 1.0 + fm0 / af, 1 / af
-            else:
-                b, db = (2 + 2 / af) * (flen - fm0) / (flen - 1), -(2 + 2 / af) / (flen - 1)
-            d0 = (fm0 - 1.0) / b
-            slope = 1.0 / b - (fm0 - 1.0) / (b * b) * db
-            return d0 + slope * (fm - fm0)
-
+        dlce = _thelen_fiber_velocity(af, flen, _prop(m, "fv_linear_extrap_threshold", 0.95), 0.0)
         fv = _tabulated_inverse(dlce, -0.5, flen * 1.2, u)
         return np.maximum(fv, 0.0), _prop(m, "max_contraction_velocity"), notes
     if type_name in ("Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle"):
@@ -298,27 +306,8 @@ def _delp_force_velocity(m, u: np.ndarray, notes: list[str]) -> tuple[np.ndarray
 def _thelen_deprecated_force_velocity(m, u: np.ndarray, notes: list[str]) -> tuple[np.ndarray, float, list[str]]:
     """Thelen2003Muscle_Deprecated::calcFiberVelocity inverted at full activation and optimal length
     (velocity in ``Vmax`` optimal fiber lengths/s, damping included)."""
-    af, flen, d = _prop(m, "Af"), _prop(m, "Flen"), _prop(m, "damping")
-    eps = 1e-6
-
-    def shortening(fv: float) -> float:  # Fv < Fa = 1
-        return (fv - 1.0) / (1.0 + fv / af + d)
-
-    def lengthening(fv: float) -> float:  # 1 <= Fv < 0.95 Flen
-        return (fv - 1.0) / ((2 + 2 / af) * (flen - fv) / (flen - 1) + d)
-
-    def vel(fv: float) -> float:
-        if fv < 0.0:  # linear below zero force, as OpenSim extrapolates
-            return shortening(0.0) + fv * (shortening(eps) - shortening(0.0)) / eps
-        if fv < 1.0:
-            return shortening(fv)
-        f0 = 0.95 * flen
-        if fv < f0:
-            return lengthening(fv)
-        f1 = (0.95 + eps) * flen
-        return lengthening(f0) + (lengthening(f1) - lengthening(f0)) / (f1 - f0) * (fv - f0)
-
-    fv = _tabulated_inverse(vel, -0.5, flen * 1.2, u)
+    af, flen = _prop(m, "Af"), _prop(m, "Flen")
+    fv = _tabulated_inverse(_thelen_fiber_velocity(af, flen, 0.95, _prop(m, "damping")), -0.5, flen * 1.2, u)
     vmax, vmax0 = _prop(m, "Vmax"), _prop(m, "Vmax0")
     notes.append(f"Thelen2003Muscle_Deprecated force-velocity at full activation: max shortening velocity "
                  f"Vmax = {vmax:.3g} optimal fiber lengths/s (OpenSim lowers it towards Vmax0 = {vmax0:.3g} "

@@ -25,7 +25,6 @@ def opensim_typenames() -> frozenset[str]:
     return frozenset(names.get(i) for i in range(names.getSize()))
 
 
-
 @cache
 def renamed_type(tag: str) -> str | None:
     """The type OpenSim reads an element ``tag`` as, where it is an old name OpenSim still accepts
@@ -37,6 +36,7 @@ def renamed_type(tag: str) -> str | None:
     instance = runtime.opensim().OpenSimObject.getDefaultInstanceOfType(tag)
     name = instance.getConcreteClassName() if instance is not None else None
     return name if name and name != tag else None
+
 
 #: The muscles and other path forces o2m converts (their paths are read by :mod:`o2m.osim.paths`).
 MUSCLE_TYPES = frozenset({
