@@ -25,6 +25,7 @@ from o2m.errors import ModelFileError
 from o2m.osim import runtime
 from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
 from o2m.osim.names import opensim_coordinate_names
+from o2m.osim.simulate import tendon_force
 
 __all__ = ["FV_FIT_RANGE", "N_EVAL", "MuscleSample", "measure_muscles", "sample_lengths"]
 
@@ -377,21 +378,13 @@ class _Bench:
 
 
 def _equilibrium_force(m, s) -> float:
-    """The tendon force (N) of muscle ``m`` just brought to equilibrium in state ``s``.
-
-    OpenSim 4.6's deprecated fiber-length muscles compute their equilibrium in
-    ``computeIsometricForce``, which leaves the force in the muscle's actuation; reading it through
-    the muscle's dynamics fails where the type does not implement them (Delp1990Muscle_Deprecated:
-    "calcActiveForce() NOT IMPLEMENTED"), so the actuation is read instead there (OpenSim raises
-    rather than give an actuation not computed on this state: NaN then).
-    """
+    """The tendon force (N) of muscle ``m`` just brought to equilibrium in state ``s``
+    (:func:`~o2m.osim.simulate.tendon_force`: OpenSim 4.6's deprecated fiber-length muscles leave
+    it in their actuation); NaN where OpenSim has none for this state."""
     try:
-        return float(m.getTendonForce(s))
+        return tendon_force(m, s)
     except RuntimeError:
-        try:
-            return float(m.getActuation(s))
-        except RuntimeError:
-            return math.nan
+        return math.nan
 
 
 def _muscle_elements(doc, names: list[str]) -> dict[str, etree._Element]:

@@ -36,7 +36,7 @@ from o2m.osim import runtime
 from o2m.osim.names import opensim_coordinate_names
 
 __all__ = ["IntegratorSettings", "ModelOutline", "OpenSimRun", "model_outline", "read_initial_state", "run_isolated",
-           "run_many", "simulate"]
+           "run_many", "simulate", "tendon_force"]
 
 
 @dataclass(frozen=True)
@@ -263,7 +263,7 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
         q[k] = [c.getValue(s) for c in coord_objs]
         u[k] = [c.getSpeedValue(s) for c in coord_objs]
         act[k] = [m.getActivation(s) for m in muscle_objs]
-        force[k] = [_tendon_force(m, s) for m in muscle_objs]  # valid: the state is realized to Dynamics
+        force[k] = [tendon_force(m, s) for m in muscle_objs]  # valid: the state is realized to Dynamics
         return bool(np.isfinite(q[k]).all() and np.isfinite(u[k]).all())
 
     t_integrate = [float("nan")]
@@ -357,9 +357,11 @@ def run_isolated(osim_path: str | os.PathLike[str], times: np.ndarray, excitatio
         return OpenSimRun.from_npz(out)
 
 
-def _tendon_force(muscle, state) -> float:
-    """A muscle's tendon force (N); its actuation where OpenSim 4.6 does not implement the muscle's
-    dynamics (Delp1990Muscle_Deprecated: "calcActiveForce() NOT IMPLEMENTED")."""
+def tendon_force(muscle, state) -> float:
+    """A muscle's tendon force (N) in ``state``; its actuation where OpenSim 4.6 does not implement
+    the muscle's dynamics (Delp1990Muscle_Deprecated: "calcActiveForce() NOT IMPLEMENTED"), which
+    its static equilibrium and its forward dynamics set. Raises RuntimeError where OpenSim has
+    neither for this state."""
     try:
         return float(muscle.getTendonForce(state))
     except RuntimeError:
