@@ -32,7 +32,8 @@ from o2m.convert.force_context import (
 )
 from o2m.convert.limit_forces import fit_deadband
 from o2m.convert.records import Approximation
-from o2m.osim.functions import Function, parse_function
+from o2m.osim.function_reader import parse_function
+from o2m.osim.functions import Function
 
 __all__ = ["BlankevoortCurve", "convert_blankevoort", "convert_ligament", "fit_ligaments", "measure_ligaments"]
 

@@ -8,7 +8,8 @@ OpenSim is Y-up, metres and radians.
 """
 
 from o2m.osim.document import OsimDocument, load_document
-from o2m.osim.functions import Function, parse_function
+from o2m.osim.function_reader import parse_function
+from o2m.osim.functions import Function
 from o2m.osim.pair import ModelPair
 from o2m.osim.simulate import IntegratorSettings, OpenSimRun, read_initial_state, run_isolated, simulate
 from o2m.osim.skeleton import Skeleton, read_skeleton

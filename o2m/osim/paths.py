@@ -10,7 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from lxml import etree
 
-from o2m.osim.functions import Function, parse_function
+from o2m.osim.function_reader import parse_function
+from o2m.osim.functions import Function
 from o2m.osim.kinds import MUSCLE_TYPES, PATH_TYPES
 from o2m.osim.skeleton import FRAME_TYPES, SkeletonReader, _floats
 from o2m.transforms import Transform, body_fixed_xyz

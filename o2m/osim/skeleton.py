@@ -16,7 +16,8 @@ from lxml import etree
 
 from o2m.errors import UnsupportedElementError
 from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
-from o2m.osim.functions import Function, parse_function
+from o2m.osim.function_reader import parse_function
+from o2m.osim.functions import Function
 from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, loop_welds, orient_joints
 from o2m.osim.kinds import BODY_CONSTRAINTS, PATH_TYPES, opensim_typenames, set_of_type
 from o2m.osim.names import CoordinateNames

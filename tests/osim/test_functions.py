@@ -12,6 +12,7 @@ import pytest
 from lxml import etree
 
 from o2m.errors import UnsupportedElementError
+from o2m.osim.function_reader import function_child, parse_function
 from o2m.osim.functions import (
     Constant,
     GCVSpline,
@@ -20,8 +21,6 @@ from o2m.osim.functions import (
     PiecewiseLinearFunction,
     PolynomialFunction,
     SimmSpline,
-    function_child,
-    parse_function,
 )
 from tests.helpers import model_file
 
