@@ -420,9 +420,11 @@ Even a fitted model drifts from OpenSim. The paper asks how small a change of th
 makes MuJoCo follow OpenSim: per muscle, a correction shaped as a cubic spline with knots every
 0.1 s (10 Hz) is added to the reference excitation (and clipped to [0, 1]). The corrections
 minimise the joint error plus an L2 penalty on their size. `o2m.paper.corrections` optimises the
-spline coefficients block by block in time with CMA-ES, in several passes over the blocks (each
-pass revisits a block after the later ones have moved), and keeps a block only if it lowers the
-whole trajectory's cost. It starts from the better of no correction and the correction that,
+spline coefficients block by block in time, in several passes over the blocks (each pass revisits
+a block after the later ones have moved), and keeps a block only if it lowers the whole
+trajectory's cost. The paper searched each block with CMA-ES; o2m's pipeline uses
+Levenberg-Marquardt (the block's cost is a sum of squares, and its short window is nearly linear in
+the corrections), which leaves a smaller error with smaller corrections. It starts from the better of no correction and the correction that,
 along OpenSim's own trajectory, would make every MuJoCo muscle pull with the tendon force OpenSim
 recorded (o2m's addition: the dataset keeps those forces).
 """),
@@ -445,6 +447,7 @@ else:  # no stored fit (a fresh dataset): correct the converted model
 i = exp.dataset.test[0]
 start = correction_start(exp, model, i)  # the correction that would match OpenSim's recorded muscle forces
 res = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i], exp.dofs,
+                      method=budget.correction_method, iterations=budget.correction_iterations,
                       generations=budget.correction_generations, sweeps=budget.correction_sweeps, seed=0,
                       start=start)
 print(f"penalty weight {PENALTY}; cost {res.cost0:.4f} -> {res.cost:.4f}; {res.evaluations} simulated windows")

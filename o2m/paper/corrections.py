@@ -9,13 +9,20 @@ The cost of a trajectory's corrections is the paper's: the squared joint error a
 (averaged over time, summed over DoFs, rad²) plus ``penalty`` (default :data:`PENALTY`) times
 the mean squared correction (over time and muscles).
 
-:func:`fit_corrections` minimises it block by block, in time order: for coefficient ``j`` of
-every muscle (a 50-dimensional block for MoBL-ARMS) CMA-ES searches while the other blocks stay
-fixed, each candidate simulated only from the start of the block's support to ``lookahead``
-knots past its end, from the state the current corrections reach there. Each block is accepted
-only if it lowers the trajectory's whole cost, so the result is never worse than no correction.
-``sweeps`` passes repeat this over all blocks: a later pass refits each block after the blocks
-after it have moved (on MoBL-ARMS, 3 passes cut the remaining error by a third against 1).
+:func:`fit_corrections` minimises it block by block, in time order: coefficient ``j`` of every
+muscle (a 50-dimensional block for MoBL-ARMS) is searched while the other blocks stay fixed, each
+candidate simulated only from the start of the block's support to ``lookahead`` knots past its
+end, from the state the current corrections reach there. Each block is accepted only if it
+lowers the trajectory's whole cost, so the result is never worse than no correction. ``sweeps``
+passes repeat this over all blocks: a later pass refits each block after the blocks after it have
+moved (on MoBL-ARMS, 3 passes cut the remaining error by a third against 1).
+
+A block is searched by CMA-ES (``method="cma"``, the paper's optimiser) or by Levenberg-Marquardt
+(``method="lm"``, o2m's addition): the block's window cost is a sum of squares (joint errors and
+the penalty), so each iteration takes its Jacobian by forward differences (one simulation per
+muscle, all in one batch) and tries a few damped Gauss-Newton steps in another batch, keeping the
+best. A block's window is short (0.5 s at most), where the dynamics are close to linear in the
+corrections; over the whole second they are not (a 1-s fit by the same method fails).
 
 The search can start from :func:`force_matching_start` (o2m's addition to the paper): the
 correction that, along OpenSim's own trajectory, would make every MuJoCo muscle pull with
@@ -34,14 +41,17 @@ import numpy as np
 from scipy.interpolate import BSpline
 
 from o2m.mj.simulate import controls_from_excitations, rollout
+from o2m.paper.marquardt import damped_steps
 
-__all__ = ["CorrectionResult", "KNOT_SPACING", "PENALTY", "bspline_basis", "corrected_excitations",
+__all__ = ["CorrectionResult", "KNOT_SPACING", "LM_DAMPINGS", "PENALTY", "bspline_basis", "corrected_excitations",
            "fit_corrections", "force_matching_start"]
 
 KNOT_SPACING = 0.1
 """Seconds between spline knots (10 Hz)."""
 PENALTY = 0.1
 """Weight of the mean squared correction in the cost (rad² per unit excitation²)."""
+LM_DAMPINGS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+"""Levenberg-Marquardt dampings tried at each iteration (times the diagonal of JᵀJ), in one batch."""
 
 
 def bspline_basis(times: np.ndarray, spacing: float = KNOT_SPACING) -> np.ndarray:
@@ -128,8 +138,9 @@ class CorrectionResult:
 
 def fit_corrections(model: mujoco.MjModel, initial_state: np.ndarray, excitations: np.ndarray,
                     muscles: Sequence[str], reference: np.ndarray, dofs: Sequence[str], *,
-                    penalty: float = PENALTY, spacing: float = KNOT_SPACING, generations: int = 20,
-                    popsize: int | None = None, sigma0: float = 0.05, lookahead: int = 1, sweeps: int = 1,
+                    penalty: float = PENALTY, spacing: float = KNOT_SPACING, method: str = "cma",
+                    generations: int = 20, popsize: int | None = None, sigma0: float = 0.05,
+                    iterations: int = 6, step: float = 0.01, lookahead: int = 1, sweeps: int = 1,
                     seed: int = 0, nthread: int | None = None, start: np.ndarray | None = None) -> CorrectionResult:
     """Fit corrective excitations for one trajectory (see the module docstring).
 
@@ -138,75 +149,128 @@ def fit_corrections(model: mujoco.MjModel, initial_state: np.ndarray, excitation
         initial_state: shape (nstate,), :func:`o2m.mujoco_sim.initial_state`.
         excitations: reference excitations, shape (T, len(muscles)), sampled every timestep.
         reference: OpenSim joint values, shape (T, len(dofs)), rad or m.
+        method: ``"cma"`` (CMA-ES per block) or ``"lm"`` (Levenberg-Marquardt per block).
         generations, popsize, sigma0: CMA-ES budget per block (sigma0 in excitation units).
+        iterations, step: Levenberg-Marquardt iterations per block (it stops earlier when no
+            step lowers the window's cost) and forward-difference step (excitation units).
         lookahead: knot intervals simulated past a block's support.
         sweeps: passes over all blocks.
+        seed: CMA-ES's seeds (Levenberg-Marquardt is deterministic).
         start: spline coefficients (n_coef, M) to start from (e.g. :func:`force_matching_start`),
             used when they cost less than no correction.
     """
-    import cma
-
-    exc = np.asarray(excitations, float)
-    ref = np.asarray(reference, float)
-    n_t, n_m = exc.shape
-    dt = model.opt.timestep
-    times = float(initial_state[0]) + dt * np.arange(n_t)
-    basis = bspline_basis(times, spacing)
-    n_c = basis.shape[1]
-    coef = np.zeros((n_c, n_m))
-    evals = 0
-
-    def simulate(coefs: np.ndarray, start: int, stop: int, state0: np.ndarray):
-        """Joint values for samples start..stop-1 of candidates coefs (P, C, M), from state0."""
-        u = np.clip(exc[None, start:stop] + np.einsum("tc,pcm->ptm", basis[start:stop], coefs), 0.0, 1.0)
-        ctrl = controls_from_excitations(model, muscles, u)
-        return rollout(model, state0, ctrl, joint_names=dofs, nthread=nthread)
-
-    def full_cost(c: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        tr = simulate(c[None], 0, n_t, initial_state)
-        q = tr.coordinates[0]
-        err = 1e3 if tr.diverged[0] else float(np.mean((q - ref) ** 2, axis=0).sum())
-        return err + penalty * float(np.mean((basis @ c) ** 2)), q, tr.states[0]
-
-    cost0, q0, states = full_cost(coef)
+    if method not in ("cma", "lm"):
+        raise ValueError(f"method must be 'cma' or 'lm', got {method!r}")
+    problem = _Problem(model, initial_state, excitations, muscles, reference, dofs, penalty, spacing, nthread)
+    n_t, n_c = problem.basis.shape
+    coef = np.zeros((n_c, problem.exc.shape[1]))
+    cost0, q0, states = problem.full_cost(coef)
     best_cost = cost0
     if start is not None:
-        c, _, st = full_cost(np.clip(np.asarray(start, float), -1.0, 1.0))
-        evals += 1
+        trial = np.clip(np.asarray(start, float), -1.0, 1.0)
+        c, _, st = problem.full_cost(trial)
         if c < best_cost:
-            coef, best_cost, states = np.clip(np.asarray(start, float), -1.0, 1.0), c, st
+            coef, best_cost, states = trial, c, st
     rng = np.random.default_rng(seed)
+    dt = model.opt.timestep
     for _ in range(sweeps):
         for j in range(n_c):
-            support = np.flatnonzero(basis[:, j] > 0)
+            support = np.flatnonzero(problem.basis[:, j] > 0)
             if len(support) == 0:
                 continue
-            start = int(support[0])
-            stop = min(n_t, int(support[-1]) + 1 + int(round(lookahead * spacing / dt)))
-            if stop - start < 2:
+            window = (int(support[0]), min(n_t, int(support[-1]) + 1 + int(round(lookahead * spacing / dt))))
+            if window[1] - window[0] < 2:
                 continue
-            state0 = states[start]
-            es = cma.CMAEvolutionStrategy(coef[j], sigma0, {"seed": int(rng.integers(1, 2**31 - 1)),
-                                                            "bounds": [-1.0, 1.0], "verbose": -9,
-                                                            **({"popsize": popsize} if popsize else {})})
-            others = penalty * np.mean((basis @ coef) ** 2)  # reference for the penalty change
-            for _g in range(generations):
-                cand = np.array(es.ask())
-                coefs = np.repeat(coef[None], len(cand), axis=0)
-                coefs[:, j] = cand
-                tr = simulate(coefs, start, stop, state0)
-                evals += len(cand)
-                err = np.mean((tr.coordinates - ref[None, start:stop]) ** 2, axis=1).sum(axis=1)
-                err[tr.diverged] = 1e3
-                pen = penalty * np.mean(np.einsum("tc,pcm->ptm", basis, coefs) ** 2, axis=(1, 2))
-                es.tell(list(cand), (err + pen - others).tolist())
+            if method == "cma":
+                x = _search_block_cma(problem, coef, j, window, states[window[0]], generations, popsize, sigma0,
+                                      int(rng.integers(1, 2**31 - 1)))
+            else:
+                x = _search_block_lm(problem, coef, j, window, states[window[0]], iterations, step)
             trial = coef.copy()
-            trial[j] = np.clip(es.result.xbest if es.result.xbest is not None else coef[j], -1.0, 1.0)
-            c, q, st = full_cost(trial)
-            evals += 1
+            trial[j] = x
+            c, _, st = problem.full_cost(trial)
             if c < best_cost:
                 coef, best_cost, states = trial, c, st
-    _, q, _ = full_cost(coef)
-    corrected = corrected_excitations(exc, basis, coef)
-    return CorrectionResult(coef, corrected, corrected - exc, cost0, best_cost, np.mean(np.abs(q0 - ref), axis=0),
-                            np.mean(np.abs(q - ref), axis=0), q, evals)
+    _, q, _ = problem.full_cost(coef)
+    corrected = corrected_excitations(problem.exc, problem.basis, coef)
+    return CorrectionResult(coef, corrected, corrected - problem.exc, cost0, best_cost,
+                            np.mean(np.abs(q0 - problem.ref), axis=0), np.mean(np.abs(q - problem.ref), axis=0), q,
+                            problem.evaluations)
+
+
+class _Problem:
+    """One trajectory's corrections: its spline basis and simulations (counted in ``evaluations``)."""
+
+    def __init__(self, model, initial_state, excitations, muscles, reference, dofs, penalty, spacing, nthread):
+        self.model, self.muscles, self.dofs, self.nthread = model, muscles, dofs, nthread
+        self.exc = np.asarray(excitations, float)
+        self.ref = np.asarray(reference, float)
+        self.initial_state, self.penalty = initial_state, penalty
+        times = float(initial_state[0]) + model.opt.timestep * np.arange(len(self.exc))
+        self.basis = bspline_basis(times, spacing)
+        self.evaluations = 0
+
+    def simulate(self, coefs: np.ndarray, window: tuple[int, int], state0: np.ndarray):
+        """Rollout of candidates ``coefs`` (P, C, M) over samples ``window`` (start, stop) from ``state0``."""
+        a, b = window
+        u = np.clip(self.exc[None, a:b] + np.einsum("tc,pcm->ptm", self.basis[a:b], coefs), 0.0, 1.0)
+        self.evaluations += len(coefs)
+        return rollout(self.model, state0, controls_from_excitations(self.model, self.muscles, u),
+                       joint_names=self.dofs, nthread=self.nthread)
+
+    def full_cost(self, coef: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """The whole trajectory's cost, its joint values (T, D) and states (T, nstate)."""
+        tr = self.simulate(coef[None], (0, len(self.exc)), self.initial_state)
+        q = tr.coordinates[0]
+        err = 1e3 if tr.diverged[0] else float(np.mean((q - self.ref) ** 2, axis=0).sum())
+        return err + self.penalty * float(np.mean((self.basis @ coef) ** 2)), q, tr.states[0]
+
+    def block_residuals(self, coef: np.ndarray, j: int, xs: np.ndarray, window: tuple[int, int],
+                        state0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals (P, R) whose sum of squares is the window cost of block ``j`` set to each of
+        ``xs`` (P, M): joint errors over the window (their squares averaged over its samples) and
+        the penalty over the whole trajectory; and those costs (P,), infinite where a run diverged."""
+        a, b = window
+        coefs = np.repeat(coef[None], len(xs), axis=0)
+        coefs[:, j] = xs
+        tr = self.simulate(coefs, window, state0)
+        joint = (tr.coordinates - self.ref[None, a:b]) / np.sqrt(b - a)
+        size = np.sqrt(self.penalty / self.exc.size) * np.einsum("tc,pcm->ptm", self.basis, coefs)
+        r = np.hstack([joint.reshape(len(xs), -1), size.reshape(len(xs), -1)])
+        cost = np.sum(r**2, axis=1)
+        cost[tr.diverged] = np.inf
+        return r, cost
+
+
+def _search_block_cma(problem: _Problem, coef: np.ndarray, j: int, window: tuple[int, int], state0: np.ndarray,
+                      generations: int, popsize: int | None, sigma0: float, seed: int) -> np.ndarray:
+    """Block ``j``'s coefficients (M,) after CMA-ES on its window cost."""
+    import cma
+
+    es = cma.CMAEvolutionStrategy(coef[j], sigma0, {"seed": seed, "bounds": [-1.0, 1.0], "verbose": -9,
+                                                    **({"popsize": popsize} if popsize else {})})
+    for _g in range(generations):
+        cand = np.array(es.ask())
+        _, cost = problem.block_residuals(coef, j, cand, window, state0)
+        es.tell(list(cand), np.where(np.isfinite(cost), cost, 1e3).tolist())
+    return np.clip(es.result.xbest if es.result.xbest is not None else coef[j], -1.0, 1.0)
+
+
+def _search_block_lm(problem: _Problem, coef: np.ndarray, j: int, window: tuple[int, int], state0: np.ndarray,
+                     iterations: int, step: float) -> np.ndarray:
+    """Block ``j``'s coefficients (M,) after Levenberg-Marquardt on its window cost: per iteration
+    a forward-difference Jacobian (M simulations) and the steps of :data:`LM_DAMPINGS` (one batch);
+    it stops when none lowers the cost."""
+    x = coef[j].copy()
+    r0, c0 = problem.block_residuals(coef, j, x[None], window, state0)
+    r0, c0 = r0[0], c0[0]
+    for _ in range(iterations):
+        h = np.where(x + step <= 1.0, step, -step)  # stay inside the bounds
+        rj, _ = problem.block_residuals(coef, j, x[None] + np.diag(h), window, state0)
+        steps = damped_steps((rj - r0[None]).T / h[None], r0, x, LM_DAMPINGS, -1.0, 1.0)
+        rs, cs = problem.block_residuals(coef, j, steps, window, state0)
+        k = int(np.argmin(cs))
+        if not cs[k] < c0:
+            break
+        x, r0, c0 = steps[k], rs[k], cs[k]
+    return x

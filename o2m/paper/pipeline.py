@@ -69,8 +69,10 @@ class Settings:
     popsize: int | None
     train_sets: int | None  # None: all training sets
     test_sets: int | None
-    correction_generations: int
+    correction_generations: int  # CMA-ES generations per spline block (the paper's column, and o2m's with "cma")
     correction_sweeps: int = 3  # passes over the spline blocks (each block re-fitted after its successors moved)
+    correction_method: str = "lm"  # o2m's column: Levenberg-Marquardt per block ("lm") or CMA-ES ("cma")
+    correction_iterations: int = 6  # Levenberg-Marquardt iterations per block
     force_stride: int = 2  # every force_stride-th OpenSim sample (2 ms apart) enters the muscle force fit
     force_nfev: int = 600  # least-squares evaluations per muscle
     overlay_sets: int = 3
@@ -86,11 +88,13 @@ class Settings:
 
 #: The budget of the stored result: the muscle force fit on every other sample of the training
 #: sets; 40 generations of 12 candidates, each simulated on all training sets (early-stopped on the
-#: validation sets); corrections with 6 generations per spline block and 3 passes over the blocks
-#: (on 4 test sets: 1 pass 0.0116 rad, 2 passes 0.0087, 3 passes 0.0078, 4 passes 0.0076).
-#: The paper's pipeline gets the same budget.
-FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=6)
+#: validation sets); corrections with 3 passes over the spline blocks, each block searched by 6
+#: Levenberg-Marquardt iterations in o2m's column and by 12 CMA-ES generations in the paper's (the
+#: budget study in docs/paper.md: more passes or generations stop paying past these). The paper's
+#: pipeline gets the same CMA-ES budget.
+FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=12)
 QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2, correction_sweeps=1,
+                 correction_iterations=1,
                  force_stride=10, force_nfev=60, quick_conversion=True)
 
 
@@ -195,11 +199,12 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     t1 = time.perf_counter()
     k = min(settings.overlay_sets, len(test))
     corrected = correct_sets(exp, fitted, test, settings=settings, force_start=True, progress=progress,
-                             cache=out / "corrections.npz", refit=refit, keep=k)
+                             cache=out / "corrections.npz", refit=refit, keep=k, method=settings.correction_method)
     corr_seconds = time.perf_counter() - t1
     paper_test = test[: settings.paper_correction_sets] if settings.paper_correction_sets else test
     paper_corrected = correct_sets(exp, paper_fitted, paper_test, settings=settings, force_start=False,
-                                   progress=progress, cache=out / "corrections_paper.npz", refit=refit, keep=k)
+                                   progress=progress, cache=out / "corrections_paper.npz", refit=refit, keep=k,
+                                   method="cma")
     errors["corrected"] = corrected[0]
     # NaN rows for test sets the paper's pipeline was not corrected on (a smaller budget)
     errors["paper_corrected"] = np.full_like(corrected[0], np.nan)
@@ -263,11 +268,14 @@ def fit_summary(fit: FitResult) -> dict:
 
 def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, settings: Settings = FULL,
                  force_start: bool = True, progress: bool = True, cache: str | os.PathLike[str] | None = None,
-                 refit: bool = False, keep: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 refit: bool = False, keep: int | None = None, method: str = "cma",
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Corrective controls (:func:`o2m.corrections.fit_corrections`) for each of ``sets``.
 
     ``force_start``: start each from the force-matching correction when it is better (o2m's
-    addition) instead of from no correction (the paper). Returns the joint error per set and DoF
+    addition) instead of from no correction (the paper). ``method``: each spline block searched
+    by CMA-ES (``"cma"``, the paper's, ``settings.correction_generations``) or Levenberg-Marquardt
+    (``"lm"``, ``settings.correction_iterations``). Returns the joint error per set and DoF
     (n_sets, n_dofs) rad, the mean absolute correction per set and muscle (n_sets, n_muscles),
     and the corrected trajectories of the first ``keep`` sets (all if None), (keep, T, n_dofs).
     With ``cache`` (an .npz file) they are
@@ -278,7 +286,7 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
 
     from o2m.paper.corrections import fit_corrections
 
-    key = correction_key(model, sets, settings, force_start, keep)
+    key = correction_key(model, sets, settings, force_start, keep, method)
     if cache is not None and Path(cache).exists() and not refit:
         with np.load(cache) as z:
             if str(z["key"]) == key:
@@ -286,7 +294,8 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
     err, size, q = [], [], []
     for i in tqdm(sets, desc="corrections", unit="set", disable=not progress):
         r = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i],
-                            exp.dofs, generations=settings.correction_generations, sweeps=settings.correction_sweeps,
+                            exp.dofs, method=method, generations=settings.correction_generations,
+                            iterations=settings.correction_iterations, sweeps=settings.correction_sweeps,
                             seed=settings.seed + i, start=correction_start(exp, model, i) if force_start else None)
         err.append(np.mean(np.abs(r.coordinates - exp.reference[i]), axis=0))
         size.append(np.mean(np.abs(r.correction), axis=0))
@@ -299,11 +308,13 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
 
 
 def correction_key(model: mujoco.MjModel, sets: list[int], settings: Settings, force_start: bool,
-                   keep: int | None = None) -> str:
+                   keep: int | None = None, method: str = "cma") -> str:
     """What a set of corrections depends on: the compiled model (:func:`model_fingerprint`), the
-    sets and the budget."""
+    sets, the method and the budget."""
     budget = (list(map(int, sets)), settings.correction_generations, settings.correction_sweeps, settings.seed,
               force_start, keep)
+    if method != "cma":  # CMA-ES's keys are those written before the method was a choice
+        budget = (*budget[:1], method, settings.correction_iterations, *budget[2:])
     return model_fingerprint(model) + json.dumps(budget)
 
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from o2m.mj.posing import joint_equality_plan
 from o2m.mj.simulate import STATE_SPEC, initial_state, muscle_activations
+from o2m.paper.marquardt import damped_steps
 
 __all__ = ["SETTLE", "HeldJoints", "Windows", "window_objective", "window_starts", "window_states", "windows"]
 
@@ -222,10 +223,7 @@ def fit_levenberg_marquardt(objective, *, validation=None, iterations: int = 10,
     for _ in tqdm(range(iterations), desc="Levenberg-Marquardt", unit="it", disable=not progress):
         J = _jacobian(objective, z, r, step, every)
         evaluations += len(z)
-        JTJ, g = J.T @ J, J.T @ r
-        diag = np.diag(JTJ) + 1e-12
-        zs = np.array([np.clip(z - np.linalg.solve(JTJ + lam * np.diag(diag), g), 0.0, 1.0)
-                       for lam in damping * np.array([0.1, 1.0, 10.0, 100.0])])
+        zs = damped_steps(J, r, z, damping * np.array([0.1, 1.0, 10.0, 100.0]), 0.0, 1.0)
         rs = window_residuals(objective, np.array([space.from_unit(v) for v in zs]), every=every)
         evaluations += len(zs)
         costs = np.sum(rs * rs, axis=1)

@@ -28,6 +28,7 @@ def test_correction_key_changes_with_any_model_field_sets_or_budget():
     assert correction_key(m, [1, 3], FULL, True) != key
     assert correction_key(m, [1, 2], QUICK, True) != key
     assert correction_key(m, [1, 2], FULL, False) != key
+    assert correction_key(m, [1, 2], FULL, True, method="lm") != key
 
 
 def test_correction_key_does_not_depend_on_the_folder_of_the_model(tmp_path):
