@@ -7,7 +7,7 @@ initial states, controls and OpenSim joint trajectories of every successful set.
 parameters fitted to the joint trajectories with CMA-ES (:mod:`o2m.fitting`), the best training
 candidate kept. o2m's: first each muscle's force to OpenSim's tendon forces along the training
 trajectories (:mod:`o2m.force_fit`, which the paper did not do), then the same CMA-ES fit,
-early-stopped on the validation sets. It fits corrective controls on the test sets
+early-stopped on the validation sets. It fits corrective controls on the test and fresh sets
 (:mod:`o2m.corrections`) for both, measures every stage on the training, validation, test and
 fresh sets (:data:`FRESH_DIR`) and writes everything the figures need to ``<data>/results/``:
 
@@ -17,7 +17,8 @@ fresh sets (:data:`FRESH_DIR`) and writes everything the figures need to ``<data
                       fit), the best training candidate (no early stopping)
 ``*_checkpoint.pkl``  CMA-ES state, to resume an interrupted fit (not kept in git)
 ``corrections.npz``, ``corrections_paper.npz`` the corrective controls' results of each pipeline,
-                      reused while the corrected model, sets and budget are the same
+                      reused while the corrected model, sets and budget are the same;
+                      ``corrections_fresh_*.npz`` the same on the fresh sets
 ``results.npz``       per test set and DoF, mean absolute joint error (rad) of the converted,
                       force-fitted, fitted and corrected model; per test set and muscle, mean absolute
                       correction; joint trajectories of the first test sets for the overlay
@@ -73,6 +74,7 @@ class Settings:
     correction_sweeps: int = 3  # passes over the spline blocks (each block re-fitted after its successors moved)
     correction_method: str = "lm"  # o2m's column: Levenberg-Marquardt per block ("lm") or CMA-ES ("cma")
     correction_iterations: int = 6  # Levenberg-Marquardt iterations per block
+    fresh_corrections: bool = True  # corrections on the fresh sets too (both columns)
     force_stride: int = 2  # every force_stride-th OpenSim sample (2 ms apart) enters the muscle force fit
     force_nfev: int = 600  # least-squares evaluations per muscle
     overlay_sets: int = 3
@@ -94,7 +96,7 @@ class Settings:
 #: pipeline gets the same CMA-ES budget.
 FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=12)
 QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2, correction_sweeps=1,
-                 correction_iterations=1,
+                 correction_iterations=1, fresh_corrections=False,
                  force_stride=10, force_nfev=60, quick_conversion=True)
 
 
@@ -210,11 +212,18 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     errors["paper_corrected"] = np.full_like(corrected[0], np.nan)
     errors["paper_corrected"][: len(paper_test)] = paper_corrected[0]
     fresh = fresh_set_errors(Path(data_dir), model_dir, stage_models, options=options)
+    fresh_sizes = {}
+    if fresh and settings.fresh_corrections:
+        columns = {"corrected": (fitted, True, settings.correction_method),
+                   "paper_corrected": (paper_fitted, False, "cma")}
+        for name, (err, size) in correct_fresh_sets(Path(data_dir), model_dir, columns, out, settings=settings,
+                                                    options=options, refit=refit, progress=progress).items():
+            fresh[name], fresh_sizes[name] = err, float(np.mean(size))
     # every stage's error off the test sets too: does a fit generalise, or only fit its training sets?
     split_errors = {split: {name: float(np.nanmean(joint_mae(exp, m, sets)[0])) for name, m in stage_models.items()}
                     for split, sets in (("train", train), ("validation", held)) if sets}
     split_errors["test"] = {name: float(np.nanmean(errors[name])) for name in stage_models}
-    split_errors.update({"fresh": {k: float(np.nanmean(v)) for k, v in fresh.items()}} if fresh else {})
+    split_errors.update({"fresh": {k: float(np.nanmean(fresh[k])) for k in stage_models}} if fresh else {})
     np.savez_compressed(
         out / "results.npz", dofs=np.array(exp.dofs), muscles=np.array(exp.muscles), test=np.array(test),
         times=exp.dataset.times, err_converted=errors["converted"], err_forces=errors["force_fitted"],
@@ -243,7 +252,8 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         "fresh_sets": {"n": int(next(iter(fresh.values())).shape[0]) if fresh else 0,
                        "mean_error_rad": {k: float(np.nanmean(v)) for k, v in fresh.items()},
                        "per_joint_error_rad": {d: {k: float(np.nanmean(v[:, j])) for k, v in fresh.items()}
-                                               for j, d in enumerate(exp.dofs)} if fresh else {}},
+                                               for j, d in enumerate(exp.dofs)} if fresh else {},
+                       "mean_abs_correction": fresh_sizes},
         "muscle_forces": forces.summary(),
         "fitted_xml": str(fitted_xml),
         "fit": fit_summary(fit),
@@ -351,6 +361,27 @@ def fresh_set_errors(data_dir: Path, model_dir: str | os.PathLike[str], stage_mo
     exp = load_experiment(fresh_dir, model_dir, options=options)
     sets = [int(i) for i in np.flatnonzero(exp.dataset.ok)]
     return {name: joint_mae(exp, m, sets)[0] for name, m in stage_models.items()}
+
+
+def correct_fresh_sets(data_dir: Path, model_dir: str | os.PathLike[str],
+                       columns: dict[str, tuple[mujoco.MjModel, bool, str]], out: Path, *, settings: Settings = FULL,
+                       options: ConvertOptions = ConvertOptions(),  # noqa: B008
+                       refit: bool = False, progress: bool = True) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Corrective controls on the fresh sets (as :func:`correct_sets` on the test sets), per column
+    ``name: (model, force_start, method)``, cached in ``out/corrections_fresh_<name>.npz``. Returns
+    per column the joint error (n_sets, n_dofs) rad and the mean absolute correction per set and
+    muscle; {} without the fresh dataset."""
+    fresh_dir = data_dir / FRESH_DIR
+    if not (fresh_dir / "opensim.npz").exists():
+        return {}
+    exp = load_experiment(fresh_dir, model_dir, options=options)
+    sets = [int(i) for i in np.flatnonzero(exp.dataset.ok)]
+    result = {}
+    for name, (model, force_start, method) in columns.items():
+        err, size, _ = correct_sets(exp, model, sets, settings=settings, force_start=force_start, progress=progress,
+                                    cache=out / f"corrections_fresh_{name}.npz", refit=refit, keep=0, method=method)
+        result[name] = err, size
+    return result
 
 
 def fit_parameters(exp: Experiment, model: mujoco.MjModel, train: list[int], held: list[int],

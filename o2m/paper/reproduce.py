@@ -141,7 +141,8 @@ def format_summary(run: PaperRun) -> str:
     fresh = s.get("fresh_sets", {})
     if fresh.get("n"):
         lines.append(f"On {fresh['n']} fresh sets (another seed, never fitted on), rad:")
-        lines += _stage_table(fresh["per_joint_error_rad"], {k: v for k, v in STAGES.items() if "corrected" not in k})
+        lines += _stage_table(fresh["per_joint_error_rad"], {k: v for k, v in STAGES.items()
+                                                             if k in fresh["mean_error_rad"]})
     uncorrected = [k for k in STAGES if "corrected" not in k]
     lines.append("Mean over DoFs and sets, per split (rad):")
     lines.append(f"  {'split':15s}" + "".join(f"{STAGES[k]:>12s}" for k in uncorrected))
@@ -154,6 +155,10 @@ def format_summary(run: PaperRun) -> str:
     )
     lines.append(f"Mean absolute correction: paper's pipeline {s['mean_abs_correction_paper']:.4f}, "
                  f"o2m's {s['mean_abs_correction']:.4f}")
+    fresh_sizes = fresh.get("mean_abs_correction", {})
+    if fresh_sizes:
+        lines.append(f"  on the fresh sets: paper's pipeline {fresh_sizes['paper_corrected']:.4f}, "
+                     f"o2m's {fresh_sizes['corrected']:.4f}")
     for label, key in (("CMA-ES, paper's pipeline (best training candidate)", "paper_fit"),
                        ("CMA-ES, o2m's pipeline (early-stopped on validation)", "fit")):
         f = s[key]

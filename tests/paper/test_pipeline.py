@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 
 from o2m.mj.simulate import initial_state
-from o2m.paper.pipeline import FULL, QUICK, correct_sets, correction_key
+from o2m.paper.pipeline import FULL, QUICK, correct_fresh_sets, correct_sets, correction_key
 from tests.helpers import MUSCLE_PENDULUM
 
 MODEL = """
@@ -65,3 +65,15 @@ def test_corrections_computed_equal_corrections_loaded_from_the_cache(tmp_path):
     loaded = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache)
     for a, b in zip(computed, loaded, strict=True):
         assert a.dtype == b.dtype and np.array_equal(a, b)
+    # another method is another key: the cache is recomputed, then reused
+    lm = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache, method="lm")
+    assert not np.array_equal(lm[0], computed[0])
+    lm_loaded = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache,
+                             method="lm")
+    for a, b in zip(lm, lm_loaded, strict=True):
+        assert np.array_equal(a, b)
+
+
+def test_fresh_corrections_need_the_fresh_dataset(tmp_path):
+    model = mujoco.MjModel.from_xml_string(MUSCLE_PENDULUM)
+    assert correct_fresh_sets(tmp_path, tmp_path, {"corrected": (model, True, "lm")}, tmp_path) == {}
