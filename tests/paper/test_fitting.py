@@ -133,7 +133,9 @@ def test_corrections_against_the_model_itself_stay_zero():
     assert res.cost0 == 0.0 and np.abs(res.correction).max() < 1e-3
 
 
-def test_corrections_reduce_the_error_of_a_weaker_model():
+def _weaker_model_problem():
+    """A pendulum whose muscle is 30 % weaker than the one that made the reference: the weak
+    model, its initial state, the excitations (T, 1) and the reference swing (T, 1)."""
     truth = pendulum(0.3)
     weak = pendulum(0.3)
     weak.actuator_gainprm[0, 2] *= 0.7
@@ -143,6 +145,11 @@ def test_corrections_reduce_the_error_of_a_weaker_model():
     init = initial_state(truth, {"swing": 0.2})
     ref = rollout(truth, init, controls_from_excitations(truth, ["lifter"], exc)[None],
                   joint_names=["swing"]).coordinates[0]
+    return weak, init, exc, ref
+
+
+def test_corrections_reduce_the_error_of_a_weaker_model():
+    weak, init, exc, ref = _weaker_model_problem()
     res = fit_corrections(weak, init, exc, ["lifter"], ref, ["swing"], generations=8, seed=0, penalty=1e-3)
     assert res.cost < 0.3 * res.cost0
     assert res.joint_mae[0] < res.joint_mae0[0]
@@ -156,15 +163,7 @@ def test_corrections_reduce_the_error_of_a_weaker_model():
 def test_levenberg_marquardt_corrections_reduce_the_error_of_a_weaker_model():
     """Per block, the window cost is a sum of squares: a few Gauss-Newton steps take it most of
     the way, deterministically, and never above the cost without correction."""
-    truth = pendulum(0.3)
-    weak = pendulum(0.3)
-    weak.actuator_gainprm[0, 2] *= 0.7
-    weak.actuator_biasprm[0, 2] *= 0.7
-    sets = generate_activations(["lifter"], 1, seed=2, p_active=1.0)
-    exc = 0.6 * sets.values[0, :250]
-    init = initial_state(truth, {"swing": 0.2})
-    ref = rollout(truth, init, controls_from_excitations(truth, ["lifter"], exc)[None],
-                  joint_names=["swing"]).coordinates[0]
+    weak, init, exc, ref = _weaker_model_problem()
     lm = fit_corrections(weak, init, exc, ["lifter"], ref, ["swing"], method="lm", iterations=2, penalty=1e-3)
     assert lm.cost < 0.01 * lm.cost0
     assert lm.joint_mae[0] < 0.1 * lm.joint_mae0[0]
