@@ -295,7 +295,8 @@ We fit the converted model in two stages, both on the training sets only:
 Beside it we run **the paper's pipeline** as the paper did: the same CMA-ES fit straight on the
 converted model (no muscle force fit), keeping the best candidate on the training sets. o2m's
 additions, all absent from that column: the muscle force fit, early stopping on held-out
-validation sets, and (notebook 5) the corrections' force-matching start. Shared by both columns
+validation sets, and (notebook 5) the corrections' force-matching start and their search by
+Levenberg-Marquardt instead of CMA-ES. Shared by both columns
 and different from the paper: each parameter is searched within one decade of its converted value
 with a penalty of 1e-3 rad² per decade² of change (the paper: log-space search with a price of
 1e-3 per unit of parameter value), and a smaller budget (12 candidates a generation; the paper
