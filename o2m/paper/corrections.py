@@ -21,8 +21,8 @@ A block is searched by CMA-ES (``method="cma"``, the paper's optimiser) or by Le
 (``method="lm"``, o2m's addition): the block's window cost is a sum of squares (joint errors and
 the penalty), so each iteration takes its Jacobian by forward differences (one simulation per
 muscle, all in one batch) and tries a few damped Gauss-Newton steps in another batch, keeping the
-best. A block's window is short (0.5 s at most), where the dynamics are close to linear in the
-corrections; over the whole second they are not (a 1-s fit by the same method fails).
+best. A block's window is short (0.5 s with the default look-ahead), so the trajectory in it
+stays close to linear in the block's corrections.
 
 The search can start from :func:`force_matching_start` (o2m's addition to the paper): the
 correction that, along OpenSim's own trajectory, would make every MuJoCo muscle pull with
