@@ -95,6 +95,8 @@ class Settings:
 #: budget study in docs/paper.md: more passes or generations stop paying past these). The paper's
 #: pipeline gets the same CMA-ES budget.
 FULL = Settings(generations=40, popsize=12, train_sets=None, test_sets=None, correction_generations=12)
+#: How the paper's column searches its corrections' spline blocks: the paper's optimiser, CMA-ES.
+PAPER_CORRECTION_METHOD = "cma"
 QUICK = Settings(generations=3, popsize=8, train_sets=8, test_sets=2, correction_generations=2, correction_sweeps=1,
                  correction_iterations=1, fresh_corrections=False,
                  force_stride=10, force_nfev=60, quick_conversion=True)
@@ -206,18 +208,19 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     paper_test = test[: settings.paper_correction_sets] if settings.paper_correction_sets else test
     paper_corrected = correct_sets(exp, paper_fitted, paper_test, settings=settings, force_start=False,
                                    progress=progress, cache=out / "corrections_paper.npz", refit=refit, keep=k,
-                                   method="cma")
+                                   method=PAPER_CORRECTION_METHOD)
     errors["corrected"] = corrected[0]
     # NaN rows for test sets the paper's pipeline was not corrected on (a smaller budget)
     errors["paper_corrected"] = np.full_like(corrected[0], np.nan)
     errors["paper_corrected"][: len(paper_test)] = paper_corrected[0]
-    fresh = fresh_set_errors(Path(data_dir), model_dir, stage_models, options=options)
+    fresh_exp = load_fresh_experiment(Path(data_dir), model_dir, options=options)
+    fresh = fresh_set_errors(*fresh_exp, stage_models) if fresh_exp else {}
     fresh_sizes = {}
-    if fresh and settings.fresh_corrections:
+    if fresh_exp and settings.fresh_corrections:
         columns = {"corrected": (fitted, True, settings.correction_method),
-                   "paper_corrected": (paper_fitted, False, "cma")}
-        for name, (err, size) in correct_fresh_sets(Path(data_dir), model_dir, columns, out, settings=settings,
-                                                    options=options, refit=refit, progress=progress).items():
+                   "paper_corrected": (paper_fitted, False, PAPER_CORRECTION_METHOD)}
+        for name, (err, size) in correct_fresh_sets(*fresh_exp, columns, out, settings=settings, refit=refit,
+                                                    progress=progress).items():
             fresh[name], fresh_sizes[name] = err, float(np.mean(size))
     # every stage's error off the test sets too: does a fit generalise, or only fit its training sets?
     split_errors = {split: {name: float(np.nanmean(joint_mae(exp, m, sets)[0])) for name, m in stage_models.items()}
@@ -351,31 +354,31 @@ def model_fingerprint(model: mujoco.MjModel) -> str:
     return digest.hexdigest()
 
 
-def fresh_set_errors(data_dir: Path, model_dir: str | os.PathLike[str], stage_models: dict[str, mujoco.MjModel],
-                     *, options: ConvertOptions = ConvertOptions()) -> dict[str, np.ndarray]:  # noqa: B008
-    """Joint error (n_sets, n_dofs) rad of each model on the fresh sets of ``<data_dir>/FRESH_DIR``
-    (excitations drawn with another seed, never fitted on), if that dataset is there; else {}."""
+def load_fresh_experiment(data_dir: Path, model_dir: str | os.PathLike[str], *,
+                          options: ConvertOptions = ConvertOptions(),  # noqa: B008
+                          ) -> tuple[Experiment, list[int]] | None:
+    """The fresh sets of ``<data_dir>/FRESH_DIR`` (excitations drawn with another seed, never fitted
+    on) laid out for MuJoCo, and the sets OpenSim ran; None if that dataset is not there."""
     fresh_dir = data_dir / FRESH_DIR
     if not (fresh_dir / "opensim.npz").exists():
-        return {}
+        return None
     exp = load_experiment(fresh_dir, model_dir, options=options)
-    sets = [int(i) for i in np.flatnonzero(exp.dataset.ok)]
+    return exp, [int(i) for i in np.flatnonzero(exp.dataset.ok)]
+
+
+def fresh_set_errors(exp: Experiment, sets: list[int],
+                     stage_models: dict[str, mujoco.MjModel]) -> dict[str, np.ndarray]:
+    """Joint error (n_sets, n_dofs) rad of each model on the fresh ``sets`` (:func:`load_fresh_experiment`)."""
     return {name: joint_mae(exp, m, sets)[0] for name, m in stage_models.items()}
 
 
-def correct_fresh_sets(data_dir: Path, model_dir: str | os.PathLike[str],
-                       columns: dict[str, tuple[mujoco.MjModel, bool, str]], out: Path, *, settings: Settings = FULL,
-                       options: ConvertOptions = ConvertOptions(),  # noqa: B008
-                       refit: bool = False, progress: bool = True) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Corrective controls on the fresh sets (as :func:`correct_sets` on the test sets), per column
-    ``name: (model, force_start, method)``, cached in ``out/corrections_fresh_<name>.npz``. Returns
-    per column the joint error (n_sets, n_dofs) rad and the mean absolute correction per set and
-    muscle; {} without the fresh dataset."""
-    fresh_dir = data_dir / FRESH_DIR
-    if not (fresh_dir / "opensim.npz").exists():
-        return {}
-    exp = load_experiment(fresh_dir, model_dir, options=options)
-    sets = [int(i) for i in np.flatnonzero(exp.dataset.ok)]
+def correct_fresh_sets(exp: Experiment, sets: list[int], columns: dict[str, tuple[mujoco.MjModel, bool, str]],
+                       out: Path, *, settings: Settings = FULL, refit: bool = False, progress: bool = True,
+                       ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Corrective controls on the fresh ``sets`` (:func:`load_fresh_experiment`), as :func:`correct_sets`
+    on the test sets, per column ``name: (model, force_start, method)``, cached in
+    ``out/corrections_fresh_<name>.npz``. Returns per column the joint error (n_sets, n_dofs) rad
+    and the mean absolute correction per set and muscle."""
     result = {}
     for name, (model, force_start, method) in columns.items():
         err, size, _ = correct_sets(exp, model, sets, settings=settings, force_start=force_start, progress=progress,

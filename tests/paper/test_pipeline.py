@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 
 from o2m.mj.simulate import initial_state
-from o2m.paper.pipeline import FULL, QUICK, correct_fresh_sets, correct_sets, correction_key
+from o2m.paper.pipeline import FULL, QUICK, correct_sets, correction_key, load_fresh_experiment
 from tests.helpers import MUSCLE_PENDULUM
 
 MODEL = """
@@ -74,6 +74,5 @@ def test_corrections_computed_equal_corrections_loaded_from_the_cache(tmp_path):
         assert np.array_equal(a, b)
 
 
-def test_fresh_corrections_need_the_fresh_dataset(tmp_path):
-    model = mujoco.MjModel.from_xml_string(MUSCLE_PENDULUM)
-    assert correct_fresh_sets(tmp_path, tmp_path, {"corrected": (model, True, "lm")}, tmp_path) == {}
+def test_no_fresh_experiment_without_the_fresh_dataset(tmp_path):
+    assert load_fresh_experiment(tmp_path, tmp_path) is None
