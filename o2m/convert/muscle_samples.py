@@ -26,6 +26,7 @@ from o2m.osim import runtime
 from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
 from o2m.osim.names import opensim_coordinate_names
 from o2m.osim.simulate import tendon_force
+from o2m.osim.spikes import path_winding, wrap_arcs
 
 __all__ = ["FV_FIT_RANGE", "N_EVAL", "MuscleSample", "measure_muscles", "sample_lengths"]
 
@@ -98,6 +99,8 @@ class _PoseModel:
         self.muscles = [ms.get(i) for i in range(ms.getSize())]
         self.muscle_names = [m.getName() for m in self.muscles]
         self.muscle_types = [m.getConcreteClassName() for m in self.muscles]
+        self.wrapped = [i for i, n in enumerate(self.muscle_names)
+                        if runtime.geometry_path(self.model, n).getWrapSet().getSize()]
         self.couplers = self._coupler_chain(osim, coords)
 
     def _coupler_chain(self, osim, coords) -> list | None:
@@ -154,7 +157,9 @@ class _PoseModel:
         return st
 
     def lengths(self, poses: np.ndarray) -> np.ndarray:
-        """(n_poses, n_muscles) MTU lengths; a pose OpenSim fails to assemble gives NaNs."""
+        """(n_poses, n_muscles) MTU lengths; a pose OpenSim fails to assemble gives NaNs, and so
+        does a muscle whose path winds round a wrap there (:func:`~o2m.osim.spikes.path_winding`):
+        no tendon reaches that length, so it must not stretch the muscle's lengthrange."""
         out = np.full((len(poses), len(self.muscles)), np.nan)
         for k, q in enumerate(poses):
             try:
@@ -162,6 +167,9 @@ class _PoseModel:
             except Exception:  # assembly failure: leave the pose out
                 continue
             out[k] = [m.getLength(st) for m in self.muscles]
+            for i in self.wrapped:
+                if path_winding(wrap_arcs(self.model, st, self.muscle_names[i])) is not None:
+                    out[k, i] = np.nan
         return out
 
 
@@ -228,7 +236,7 @@ def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses
     else:
         len_rest = pm.lengths(rest)
     all_lengths = np.concatenate([len_ends, len_rest], axis=0)
-    n_failed = int(np.isnan(all_lengths[:, 0]).sum()) if all_lengths.size else 0
+    n_failed = int(np.isnan(all_lengths).all(axis=1).sum()) if all_lengths.size else 0
     return all_lengths, n_failed
 
 
@@ -240,7 +248,11 @@ def _lengthranges(all_lengths: np.ndarray, supported: list[int], names: list[str
     lr = np.zeros((len(names), 2))
     for k, i in enumerate(supported):
         col = all_lengths[:, i]
+        wound = int(np.isnan(col).sum()) - n_failed
         col = col[np.isfinite(col)]
+        if wound:
+            notes[names[k]].append(f"{wound} sampled pose(s) left out of the lengthrange where OpenSim's path "
+                                   "winds over a full turn round a wrap (o2m.osim.spikes.path_winding)")
         lo, hi = float(col.min()), float(col.max())
         if hi - lo < 1e-6:
             pad = max(1e-4, 0.005 * hi)

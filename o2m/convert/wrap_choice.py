@@ -136,7 +136,7 @@ def best_variant(fits: list[Any]) -> Any:
     smallest objective over all poses among those whose worst length error is near the smallest
     (:data:`VARIANT_PCT_FACTOR`), on a tie the first; it records every variant's errors."""
     floor = min(_worst_pct(f) for f in fits)
-    eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
+    eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN] or fits
     # on equal errors the first (the most wraps kept): a wrap that acts at none of the sampled
     # poses may act at others
     best = min(eligible, key=_overall)

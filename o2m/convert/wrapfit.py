@@ -439,6 +439,9 @@ def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int
         banded = np.intersect1d(band_suspects(converted, base), wanted_idx)
         for i in opensim_failures(pair, values, suspects, raw, banded):
             ok[i] = False
+        # a wrap arc OpenSim draws with non-finite points (MoBL_ARMS_model_for_mujoco.osim's DELT3 at
+        # one pose of the full fit's): no target, and one NaN would spread to every pose's
+        ok &= np.isfinite(raw) & np.isfinite(gap)
         valid.append(ok)
         touched.append({t: wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
                        if len(touched) < n_contact else {})

@@ -18,10 +18,11 @@ from o2m.osim.runtime import TRANSLATIONAL
 from o2m.transforms import body_fixed_xyz
 
 __all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_CONSISTENCY", "OUTLIER",
-           "LOOP_KINDS", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "band_suspects", "current_path_points",
+           "LOOP_KINDS", "FULL_TURN", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "band_suspects",
+           "current_path_points",
            "one_pose_spikes", "opensim_detours", "opensim_failures", "opensim_loops", "opensim_spikes",
-           "drawn_length", "opensim_inconsistencies", "outlying_changes", "path_detour", "path_loop", "runs_cross",
-           "wrap_contacts", "wrap_runs"]
+           "drawn_length", "opensim_inconsistencies", "opensim_windings", "outlying_changes", "path_detour",
+           "path_loop", "path_winding", "arc_turn", "runs_cross", "wrap_arcs", "wrap_contacts", "wrap_runs"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -45,6 +46,9 @@ DETOUR_FRACTION = 0.25
 #: Wrap objects whose runs :func:`path_loop` checks: MuJoCo wraps their stand-ins (a cylinder
 #: across its axis, a sphere in the plane of its centre and the two run ends) in one plane.
 LOOP_KINDS = ("WrapCylinder", "WrapSphere", "WrapEllipsoid")
+#: A wrap arc that turns further than this (radians) round its wrap object winds round it: one
+#: whole turn could be taken off, so it is no shortest path, and MuJoCo's wraps turn less.
+FULL_TURN = 2.0 * np.pi
 #: OpenSim -dL/dq estimates at two steps that differ by more than this (m) are no moment arm.
 DLDQ_CONSISTENCY = 1e-3
 
@@ -193,6 +197,53 @@ def path_loop(runs: Sequence[tuple[str, str, np.ndarray]]) -> dict[str, Any] | N
     return None
 
 
+def arc_turn(kind: str, arc: np.ndarray) -> float:
+    """The angle (radians) a wrap arc ``arc`` (n, 3) (points in path order, in the wrap object's
+    frame, m) turns round its object: about a cylinder's axis (z), or as seen from the centre of
+    a sphere or ellipsoid (the sum of the angles between successive points)."""
+    pts = np.asarray(arc, dtype=float)
+    if len(pts) < 2:
+        return 0.0
+    if kind == "WrapCylinder":
+        return float(np.abs(np.diff(np.unwrap(np.arctan2(pts[:, 1], pts[:, 0])))).sum())
+    unit = pts / np.maximum(np.linalg.norm(pts, axis=1, keepdims=True), 1e-12)
+    return float(np.arccos(np.clip(np.sum(unit[:-1] * unit[1:], axis=1), -1.0, 1.0)).sum())
+
+
+def path_winding(arcs: Sequence[tuple[str, str, np.ndarray]]) -> dict[str, Any] | None:
+    """The first wrap of ``arcs`` ((wrap object name, its class name, (n, 3) arc in its frame),
+    :func:`wrap_arcs`) whose arc turns more than :data:`FULL_TURN` round it (:func:`arc_turn`):
+    {"wrap", "kind", "turn" (radians)}, or None. OpenSim's spiral round a cylinder can take the
+    long way round in the wrong sense (MoBL-ARMS's SUP, quadrant -x: 522 degrees, 1.45 turns,
+    for pro_sup above 0.068 rad)."""
+    for wrap, kind, arc in arcs:
+        if kind in LOOP_KINDS:
+            turn = arc_turn(kind, arc)
+            if turn > FULL_TURN:
+                return {"wrap": wrap, "kind": kind, "turn": turn}
+    return None
+
+
+def wrap_arcs(os_model: Any, state: Any, name: str) -> list[tuple[str, str, np.ndarray]]:
+    """For each wrap on OpenSim's current path of the path force ``name`` in realised ``state``
+    that draws an arc (``getWrapPath``): (wrap object name, its class name, (n, 3) the arc's
+    points in the wrap object's frame, m)."""
+    opensim = runtime.opensim()
+    current = runtime.geometry_path(os_model, name).getCurrentPath(state)
+    out = []
+    for k in range(current.getSize()):
+        point = opensim.PathWrapPoint.safeDownCast(current.get(k))
+        arc = point.getWrapPath(state) if point is not None else None
+        if arc is None or arc.getSize() < 2:
+            continue
+        wrap = point.getWrapObject()
+        rot = body_fixed_xyz(wrap.get_xyz_body_rotation().to_numpy())
+        origin = wrap.get_translation().to_numpy()
+        in_body = np.array([arc.get(j).to_numpy() for j in range(arc.getSize())])
+        out.append((wrap.getName(), wrap.getConcreteClassName(), (in_body - origin) @ rot))
+    return out
+
+
 def wrap_runs(os_model: Any, state: Any, name: str) -> list[tuple[str, str, np.ndarray]]:
     """For each wrap on OpenSim's current path of the path force ``name`` in realised ``state``:
     (wrap object name, its class name, (4, 3) the points before and after it and its first and
@@ -265,6 +316,23 @@ def opensim_loops(pair: ModelPair, values: Mapping[str, float], muscles: Sequenc
     return out
 
 
+def opensim_windings(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
+                     lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
+    ``values`` winds round a wrap (:func:`path_winding`): muscle index -> {"test": "winding",
+    "wrap", "kind", "turn" (radians), "length" (m)}."""
+    out: dict[int, dict[str, Any]] = {}
+    if not len(muscles):
+        return out
+    state = pair.os_state(values)
+    for i in muscles:
+        found = path_winding(wrap_arcs(pair.os_model, state, pair.matched[int(i)][0]))
+        if found is not None:
+            length = float(lengths[int(i)]) if lengths is not None else float(pair.matched[int(i)][2].getLength(state))
+            out[int(i)] = {"test": "winding", **found, "length": length}
+    return out
+
+
 def drawn_length(os_model: Any, state: Any, name: str) -> float:
     """Length (m) of the path OpenSim draws for the path force ``name`` in realised ``state``: its
     current path points joined straight, through the points of each wrap arc (``getWrapPath``, in
@@ -320,10 +388,11 @@ def opensim_inconsistencies(pair: ModelPair, values: Mapping[str, float], muscle
 def opensim_failures(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
                      lengths: np.ndarray | None = None, banded: Sequence[int] = ()) -> dict[int, dict[str, Any]]:
     """:func:`opensim_spikes`, and for the ``banded`` muscles it does not flag,
-    :func:`opensim_detours`, :func:`opensim_loops` and :func:`opensim_inconsistencies`: every
-    (muscle, pose) sample that is no fair test of a converted path."""
+    :func:`opensim_detours`, :func:`opensim_loops`, :func:`opensim_windings` and
+    :func:`opensim_inconsistencies`: every (muscle, pose) sample that is no fair test of a
+    converted path."""
     out = opensim_spikes(pair, values, muscles, lengths, banded)
-    for test in (opensim_detours, opensim_loops, opensim_inconsistencies):
+    for test in (opensim_detours, opensim_loops, opensim_windings, opensim_inconsistencies):
         rest = [int(i) for i in banded if int(i) not in out]
         out.update(test(pair, values, rest, lengths) if rest else {})
     return out

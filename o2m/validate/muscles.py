@@ -148,8 +148,9 @@ class MuscleReport:
     #: (:func:`~o2m.osim.spikes.opensim_detours`): {"muscle", "pose", "test": "detour", "wrap",
     #: "segment", "beyond", "length"}; or loops round a wrap, its runs crossing
     #: (:func:`~o2m.osim.spikes.opensim_loops`): {..., "test": "loop", "wrap", "kind", "length"}; or
-    #: its length is not that of the path it draws (:func:`~o2m.osim.spikes.opensim_inconsistencies`):
-    #: {..., "test": "inconsistent", "length", "drawn"}.
+    #: winds over a full turn round one (:func:`~o2m.osim.spikes.opensim_windings`): {..., "test":
+    #: "winding", "wrap", "kind", "turn", "length"}; or its length is not that of the path it draws
+    #: (:func:`~o2m.osim.spikes.opensim_inconsistencies`): {..., "test": "inconsistent", "length", "drawn"}.
     opensim_spikes: list[dict[str, Any]] = field(default_factory=list)
 
     @property
@@ -194,7 +195,7 @@ class MuscleReport:
             f"{len(self.coordinates)} coordinates"
             + (f", {self.skipped_poses} poses skipped (assembly failed)" if self.skipped_poses else "")
             + (f", {len(self.opensim_spikes)} (muscle, pose) samples left out where OpenSim's own length spikes "
-               "or detours, loops or is not its drawn path's" if self.opensim_spikes else ""),
+               "or detours, loops, winds or is not its drawn path's" if self.opensim_spikes else ""),
         ]
         w = max([len("muscle")] + [len(m) for m in self.muscles])
         lines.append(f"  {'muscle':<{w}}  {'max len mm':>10}  {'rms len mm':>10}  {'max len %':>9}  "

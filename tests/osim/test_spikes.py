@@ -1,5 +1,5 @@
-"""OpenSim's own path failures that comparisons leave out: detours (o2m.osim.spikes.path_detour)
-and loops round a wrap (o2m.osim.spikes.path_loop).
+"""OpenSim's own path failures that comparisons leave out: detours (o2m.osim.spikes.path_detour),
+loops round a wrap (o2m.osim.spikes.path_loop) and windings round one (path_winding).
 
 Spikes and failure bands are tested with the wrap tests (tests/convert/test_wrapping.py).
 """
@@ -13,11 +13,15 @@ from o2m.osim import runtime
 from o2m.osim.spikes import (
     BAND_FRACTION,
     DETOUR_FRACTION,
+    FULL_TURN,
+    arc_turn,
     current_path_points,
     drawn_length,
     path_detour,
     path_loop,
+    path_winding,
     runs_cross,
+    wrap_arcs,
     wrap_runs,
 )
 from tests.helpers import model_file
@@ -193,3 +197,42 @@ def test_mobl_for_mujoco_fcu_overshoot_is_an_inconsistent_length_not_a_detour():
     length = runtime.geometry_path(model, "FCU").getLength(state)
     drawn = drawn_length(model, state, "FCU")
     assert length > 1.5 * straight and drawn - length > 2 * BAND_FRACTION * length, (straight, length, drawn)
+
+
+def _helix(start_deg: float, turn_deg: float, radius: float = 0.008, rise: float = 0.03, n: int = 40) -> np.ndarray:
+    """A spiral arc on a cylinder about z: from ``start_deg`` through ``turn_deg`` (either sense)."""
+    ang = np.radians(start_deg + np.linspace(0.0, turn_deg, n))
+    return np.c_[radius * np.cos(ang), radius * np.sin(ang), np.linspace(0.0, -rise, n)]
+
+
+def test_an_arc_over_a_full_turn_round_its_wrap_winds():
+    """The long way round a cylinder (210 degrees) is a path; 522 degrees (the shape of OpenSim's
+    SUP arc on MoBL-ARMS) winds round it and is flagged, with the turn measured in either sense.
+    A sphere's arc is measured from its centre: a great circle over 300 degrees is not flagged,
+    one over 400 is."""
+    assert abs(arc_turn("WrapCylinder", _helix(114, 210)) - np.radians(210)) < 1e-9
+    assert abs(arc_turn("WrapCylinder", _helix(114, -522)) - np.radians(522)) < 1e-9
+    assert path_winding([("SUP", "WrapCylinder", _helix(114, 210))]) is None
+    found = path_winding([("ring", "WrapTorus", _helix(0, 600)), ("SUP", "WrapCylinder", _helix(114, -522))])
+    assert found is not None and found["wrap"] == "SUP" and found["turn"] > FULL_TURN, found
+
+    def circle(turn_deg: float) -> np.ndarray:
+        ang = np.radians(np.linspace(0.0, turn_deg, 50))
+        return 0.02 * np.c_[np.cos(ang), np.zeros_like(ang), np.sin(ang)]
+    assert abs(arc_turn("WrapSphere", circle(300)) - np.radians(300)) < 1e-9
+    assert path_winding([("head", "WrapSphere", circle(300))]) is None
+    assert path_winding([("head", "WrapEllipsoid", circle(400))])["turn"] > FULL_TURN
+
+
+def test_mobl_sup_winds_round_its_cylinder_in_opensim_once_supinated():
+    """The floor behind SUP's length on MoBL-ARMS: its cylinder (quadrant -x) is wrapped less than
+    half a turn up to pro_sup 0 (the length growing smoothly), then, past about 0.07 rad, by a
+    spiral of over a full turn in the wrong sense (the length jumps by about 41 mm), which one
+    whole turn would shorten: no shortest path, and not one a tendon can follow."""
+    turns = {}
+    for q in (-1.0, 0.0, 0.3, 1.2):
+        model, state = _posed("mobl-arms/MoBL_ARMS_model_for_testing_opensim.osim", {"pro_sup": q})
+        arcs = {w: (k, a) for w, k, a in wrap_arcs(model, state, "SUP")}
+        turns[q] = arc_turn(*arcs["SUP"])
+    assert turns[-1.0] < turns[0.0] < np.pi, turns
+    assert turns[0.3] > FULL_TURN and turns[1.2] > FULL_TURN, turns
