@@ -7,7 +7,7 @@ evidence (the length at the pose and at its two neighbours).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -282,21 +282,31 @@ def current_path_points(os_model: Any, state: Any, name: str) -> list[tuple[str,
     return out
 
 
-def opensim_detours(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
-                    lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
-    """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
-    ``values`` makes a detour (:func:`path_detour`): muscle index -> {"test": "detour", "wrap",
-    "segment", "beyond", "length" (m)}."""
+def _path_test(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int], lengths: np.ndarray | None,
+               test: str, find: Callable[[Any, Any, str], dict[str, Any] | None]) -> dict[int, dict[str, Any]]:
+    """Muscle index -> {"test": ``test``, what ``find(os_model, state, name)`` found, "length" (m)}
+    for each of ``muscles`` (indices into ``pair.matched``) whose OpenSim path at the pose of
+    independent ``values`` ``find`` flags (``lengths``: OpenSim's, read again where None)."""
     out: dict[int, dict[str, Any]] = {}
     if not len(muscles):
         return out
     state = pair.os_state(values)
     for i in muscles:
-        found = path_detour(current_path_points(pair.os_model, state, pair.matched[int(i)][0]))
+        name, _, force = pair.matched[int(i)]
+        found = find(pair.os_model, state, name)
         if found is not None:
-            length = float(lengths[int(i)]) if lengths is not None else float(pair.matched[int(i)][2].getLength(state))
-            out[int(i)] = {"test": "detour", **found, "length": length}
+            length = float(lengths[int(i)]) if lengths is not None else float(force.getLength(state))
+            out[int(i)] = {"test": test, **found, "length": length}
     return out
+
+
+def opensim_detours(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
+                    lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
+    """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
+    ``values`` makes a detour (:func:`path_detour`): muscle index -> {"test": "detour", "wrap",
+    "segment", "beyond", "length" (m)}."""
+    return _path_test(pair, values, muscles, lengths, "detour",
+                      lambda model, state, name: path_detour(current_path_points(model, state, name)))
 
 
 def opensim_loops(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
@@ -304,16 +314,8 @@ def opensim_loops(pair: ModelPair, values: Mapping[str, float], muscles: Sequenc
     """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
     ``values`` loops round a wrap (:func:`path_loop`): muscle index -> {"test": "loop", "wrap",
     "kind", "length" (m)}."""
-    out: dict[int, dict[str, Any]] = {}
-    if not len(muscles):
-        return out
-    state = pair.os_state(values)
-    for i in muscles:
-        found = path_loop(wrap_runs(pair.os_model, state, pair.matched[int(i)][0]))
-        if found is not None:
-            length = float(lengths[int(i)]) if lengths is not None else float(pair.matched[int(i)][2].getLength(state))
-            out[int(i)] = {"test": "loop", **found, "length": length}
-    return out
+    return _path_test(pair, values, muscles, lengths, "loop",
+                      lambda model, state, name: path_loop(wrap_runs(model, state, name)))
 
 
 def opensim_windings(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
@@ -321,16 +323,8 @@ def opensim_windings(pair: ModelPair, values: Mapping[str, float], muscles: Sequ
     """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
     ``values`` winds round a wrap (:func:`path_winding`): muscle index -> {"test": "winding",
     "wrap", "kind", "turn" (radians), "length" (m)}."""
-    out: dict[int, dict[str, Any]] = {}
-    if not len(muscles):
-        return out
-    state = pair.os_state(values)
-    for i in muscles:
-        found = path_winding(wrap_arcs(pair.os_model, state, pair.matched[int(i)][0]))
-        if found is not None:
-            length = float(lengths[int(i)]) if lengths is not None else float(pair.matched[int(i)][2].getLength(state))
-            out[int(i)] = {"test": "winding", **found, "length": length}
-    return out
+    return _path_test(pair, values, muscles, lengths, "winding",
+                      lambda model, state, name: path_winding(wrap_arcs(model, state, name)))
 
 
 def drawn_length(os_model: Any, state: Any, name: str) -> float:
