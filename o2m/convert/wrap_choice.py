@@ -16,6 +16,7 @@ length error is near the smallest, the one with the smallest objective over all 
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -121,14 +122,17 @@ def xml_without(xml: str, tendon: str, dropped: Iterable[str]) -> str:
 
 
 def _overall(fit: Any) -> float:
-    """A fit's objective over its fitting and check poses together (mm²)."""
+    """A fit's objective over its fitting and check poses together (mm²; inf where not finite)."""
     a, c = fit.after, fit.check_after
-    return (a["objective"] * a["poses"] + c["objective"] * c["poses"]) / max(a["poses"] + c["poses"], 1)
+    value = (a["objective"] * a["poses"] + c["objective"] * c["poses"]) / max(a["poses"] + c["poses"], 1)
+    return value if math.isfinite(value) else math.inf
 
 
 def _worst_pct(fit: Any) -> float:
-    """A fit's worst length error over its fitting and check poses (% of OpenSim's length)."""
-    return max(fit.after["len_max_pct"], fit.check_after["len_max_pct"])
+    """A fit's worst length error over its fitting and check poses (% of OpenSim's length; inf
+    where not finite, so that a fit without finite errors is never preferred)."""
+    value = max(fit.after["len_max_pct"], fit.check_after["len_max_pct"])
+    return value if math.isfinite(value) else math.inf
 
 
 def best_variant(fits: list[Any]) -> Any:
@@ -136,7 +140,7 @@ def best_variant(fits: list[Any]) -> Any:
     smallest objective over all poses among those whose worst length error is near the smallest
     (:data:`VARIANT_PCT_FACTOR`), on a tie the first; it records every variant's errors."""
     floor = min(_worst_pct(f) for f in fits)
-    eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN] or fits
+    eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
     # on equal errors the first (the most wraps kept): a wrap that acts at none of the sampled
     # poses may act at others
     best = min(eligible, key=_overall)

@@ -405,6 +405,10 @@ def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_w
     assert best_variant([fit("a", 10.0, 5.0), fit("b", 9.0, 6.0)]).variant == "b"  # 6.0 <= 1.2 * 5 + 0.1
     # Rajagopal2016's gaslat_l: 1.62 % is not near 0.52 %
     assert best_variant([fit("condyles", 239.9, 1.62), fit("shank", 260.35, 0.52)]).variant == "shank"
+    # errors that are not finite (NaN targets) never win, and never leave nothing to choose
+    nan = float("nan")
+    assert best_variant([fit("lost", nan, nan), fit("kept", 300.0, 3.0)]).variant == "kept"
+    assert best_variant([fit("first", nan, nan), fit("second", nan, nan)]).variant == "first"
 
 
 def test_dropping_wraps_from_a_spec_changes_nothing_else(tmp_path):
