@@ -17,12 +17,11 @@ from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL
 from o2m.transforms import body_fixed_xyz
 
-__all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_CONSISTENCY", "OUTLIER",
-           "LOOP_KINDS", "FULL_TURN", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "band_suspects",
-           "current_path_points",
-           "one_pose_spikes", "opensim_detours", "opensim_failures", "opensim_loops", "opensim_spikes",
-           "drawn_length", "opensim_inconsistencies", "opensim_windings", "outlying_changes", "path_detour",
-           "path_loop", "path_winding", "arc_turn", "runs_cross", "wrap_arcs", "wrap_contacts", "wrap_runs"]
+__all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_CONSISTENCY", "FULL_TURN",
+           "LOOP_KINDS", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "arc_turn", "band_suspects",
+           "current_path_points", "drawn_length", "one_pose_spikes", "opensim_detours", "opensim_failures",
+           "opensim_inconsistencies", "opensim_loops", "opensim_spikes", "opensim_windings", "outlying_changes",
+           "path_detour", "path_loop", "path_winding", "runs_cross", "wrap_arcs", "wrap_contacts", "wrap_runs"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -213,9 +212,9 @@ def arc_turn(kind: str, arc: np.ndarray) -> float:
 def path_winding(arcs: Sequence[tuple[str, str, np.ndarray]]) -> dict[str, Any] | None:
     """The first wrap of ``arcs`` ((wrap object name, its class name, (n, 3) arc in its frame),
     :func:`wrap_arcs`) whose arc turns more than :data:`FULL_TURN` round it (:func:`arc_turn`):
-    {"wrap", "kind", "turn" (radians)}, or None. OpenSim's spiral round a cylinder can take the
-    long way round in the wrong sense (MoBL-ARMS's SUP, quadrant -x: 522 degrees, 1.45 turns,
-    for pro_sup above 0.068 rad)."""
+    {"wrap", "kind", "turn" (radians)}, or None. OpenSim's spiral round a cylinder with a
+    quadrant can go the long way round in the wrong sense, adding a whole turn (MoBL-ARMS's SUP
+    when supinated; docs/muscle-paths.md)."""
     for wrap, kind, arc in arcs:
         if kind in LOOP_KINDS:
             turn = arc_turn(kind, arc)
@@ -237,11 +236,15 @@ def wrap_arcs(os_model: Any, state: Any, name: str) -> list[tuple[str, str, np.n
         if arc is None or arc.getSize() < 2:
             continue
         wrap = point.getWrapObject()
-        rot = body_fixed_xyz(wrap.get_xyz_body_rotation().to_numpy())
-        origin = wrap.get_translation().to_numpy()
         in_body = np.array([arc.get(j).to_numpy() for j in range(arc.getSize())])
-        out.append((wrap.getName(), wrap.getConcreteClassName(), (in_body - origin) @ rot))
+        out.append((wrap.getName(), wrap.getConcreteClassName(), _in_wrap_frame(wrap, in_body)))
     return out
+
+
+def _in_wrap_frame(wrap: Any, in_body: np.ndarray) -> np.ndarray:
+    """Points (n, 3) given in the frame of ``wrap``'s body, in the wrap object's own frame (m)."""
+    rot = body_fixed_xyz(wrap.get_xyz_body_rotation().to_numpy())
+    return (np.asarray(in_body, dtype=float) - wrap.get_translation().to_numpy()) @ rot
 
 
 def wrap_runs(os_model: Any, state: Any, name: str) -> list[tuple[str, str, np.ndarray]]:
@@ -258,14 +261,10 @@ def wrap_runs(os_model: Any, state: Any, name: str) -> list[tuple[str, str, np.n
         if first is None or last is None or first.getWrapObject().getName() != last.getWrapObject().getName():
             continue
         wrap = first.getWrapObject()
-        rot = body_fixed_xyz(wrap.get_xyz_body_rotation().to_numpy())
-        origin = wrap.get_translation().to_numpy()
-        pts = []
-        for j in (k - 1, k, k + 1, k + 2):
-            in_body = ground.findStationLocationInAnotherFrame(state, current.get(j).getLocationInGround(state),
-                                                               wrap.getFrame()).to_numpy()
-            pts.append(rot.T @ (in_body - origin))
-        out.append((wrap.getName(), wrap.getConcreteClassName(), np.array(pts)))
+        in_body = [ground.findStationLocationInAnotherFrame(state, current.get(j).getLocationInGround(state),
+                                                            wrap.getFrame()).to_numpy()
+                   for j in (k - 1, k, k + 1, k + 2)]
+        out.append((wrap.getName(), wrap.getConcreteClassName(), _in_wrap_frame(wrap, np.array(in_body))))
     return out
 
 
