@@ -49,9 +49,9 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from lxml import etree
 
 from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets
+from o2m.convert.reduced import reduced_xml, without_unused
 from o2m.convert.wrap_choice import best_variant, drop_from_spec, whole_and_straight, xml_without
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
@@ -131,31 +131,6 @@ class _Task:
 # --------------------------------------------------------------------------------------------
 # MuJoCo side (runs in the workers)
 # --------------------------------------------------------------------------------------------
-
-
-def reduced_xml(xml: str, tendon: str | None = None) -> str:
-    """MJCF text of ``xml`` without meshes, actuators, sensors or keyframes, and with only
-    ``tendon`` (every tendon when None): what tendon lengths depend on, cheap to evaluate."""
-    root = etree.fromstring(xml.encode())
-    for asset in root.iter("asset"):
-        for el in list(asset):
-            if el.tag in ("mesh", "hfield", "skin"):
-                asset.remove(el)
-    for g in list(root.iter("geom")):
-        if g.get("mesh") is not None or g.get("type") in ("mesh", "hfield", "sdf"):
-            g.getparent().remove(g)
-    for tag in ("actuator", "sensor", "keyframe", "contact", "custom"):
-        for el in list(root.iter(tag)):
-            el.getparent().remove(el)
-    for ten in list(root.iter("tendon")):
-        for el in list(ten):
-            if tendon is not None and el.get("name") != tendon:
-                ten.remove(el)
-    for eq in list(root.iter("equality")):
-        for el in list(eq):
-            if el.tag == "tendon":
-                eq.remove(el)
-    return etree.tostring(root, encoding="unicode")
 
 
 class _Evaluator:
@@ -249,18 +224,19 @@ class _Evaluator:
         qs = t.qpos[rows]
         n = len(qs)
         length = np.empty(n)
-        arm = np.empty((n, t.dv.shape[1]))
-        dv = t.dv[rows]
+        adr, nnz = int(m.ten_J_rowadr[0]), int(m.ten_J_rownnz[0])  # the pattern is the model's
+        rows_j = np.empty((n, nnz))
         for k in range(n):
             d.qpos[:] = qs[k]
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
             mujoco.mj_tendon(m, d)
             length[k] = d.ten_length[0]
-            jac = np.zeros(m.nv)
-            adr, nnz = int(m.ten_J_rowadr[0]), int(m.ten_J_rownnz[0])
-            jac[m.ten_J_colind[adr:adr + nnz]] = d.ten_J[adr:adr + nnz]
-            arm[k] = -(dv[k] @ jac)
+            rows_j[k] = d.ten_J[adr:adr + nnz]
+        jac = np.zeros((n, m.nv))
+        jac[:, m.ten_J_colind[adr:adr + nnz]] = rows_j
+        dv = t.dv[rows]
+        arm = np.array([-(dv[k] @ jac[k]) for k in range(n)]).reshape(n, dv.shape[1])
         self.evaluations += 1
         return length - t.length[rows], arm - t.arm[rows]
 
@@ -547,7 +523,9 @@ def _task(tendon: str, xml: str, geoms: list[Any], tg: dict[str, Any], variant: 
             pts = np.array(pts)
             pts = pts @ OSIM_TO_MJ.T if g.body == "ground" else pts  # MuJoCo's ground is Z-up
         contacts.append(pts if pts is not None and len(pts) else None)
-    return _Task(tendon, xml_without(reduced_xml(xml, tendon), tendon, dropped), [g.geom for g in geoms],
+    named = [g.geom for g in geoms] + [g.sidesite for g in geoms if g.sidesite] + list(vias)
+    task_xml = without_unused(xml_without(reduced_xml(xml, tendon), tendon, dropped), keep=named)
+    return _Task(tendon, task_xml, [g.geom for g in geoms],
                  [g.sidesite for g in geoms], [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
                  n_fit, tg["coordinates"], seed, budget, contacts, [v for v in vias if v not in dropped],
                  variant.label if variant is not None else "", sorted(dropped), starts)
