@@ -23,6 +23,7 @@ from lxml import etree
 from o2m.convert.muscle_types import _activation_times, _force_velocity, _prop
 from o2m.errors import ModelFileError
 from o2m.osim import runtime
+from o2m.osim.couplers import coupler_chain, set_coupled
 from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
 from o2m.osim.names import opensim_coordinate_names
 from o2m.osim.simulate import tendon_force
@@ -101,43 +102,7 @@ class _PoseModel:
         self.muscle_types = [m.getConcreteClassName() for m in self.muscles]
         self.wrapped = [i for i, n in enumerate(self.muscle_names)
                         if runtime.geometry_path(self.model, n).getWrapSet().getSize()]
-        self.couplers = self._coupler_chain(osim, coords)
-
-    def _coupler_chain(self, osim, coords) -> list | None:
-        """When every enforced constraint is a CoordinateCouplerConstraint, the couplers in an
-        order that evaluates each dependent after the coordinates it depends on: (dependent,
-        independents, function, scale factor). Setting dependents from them satisfies the
-        constraints exactly, as assembly would (to its tolerance), at a fraction of the cost.
-        None when other constraints need OpenSim's assembler."""
-        s = self.state
-        by_name = {c.getName(): c for c in coords}
-        cs = self.model.getConstraintSet()
-        pending = []
-        for i in range(cs.getSize()):
-            con = cs.get(i)
-            if not con.isEnforced(s):
-                continue
-            if con.getConcreteClassName() != "CoordinateCouplerConstraint":
-                return None
-            cc = osim.CoordinateCouplerConstraint.safeDownCast(con)
-            names = cc.getIndependentCoordinateNames()
-            indep = [names.get(j) for j in range(names.getSize())]
-            dep = cc.getDependentCoordinateName()
-            if dep not in by_name or any(n not in by_name for n in indep):
-                return None
-            pending.append((dep, indep, cc.getFunction(), _prop(cc, "scale_factor", 1.0)))
-        deps = {p[0] for p in pending}
-        done: set[str] = set()
-        chain = []
-        while pending:
-            ready = [p for p in pending if all(n not in deps or n in done for n in p[1])]
-            if not ready:
-                return None  # cyclic couplers: leave them to the assembler
-            for p in ready:
-                chain.append((by_name[p[0]], [by_name[n] for n in p[1]], p[2], p[3]))
-                done.add(p[0])
-                pending.remove(p)
-        return chain
+        self.couplers = coupler_chain(self.model, s)
 
     def pose(self, q: np.ndarray):
         """A state with the independent coordinates at ``q`` and every constraint satisfied."""
@@ -148,11 +113,7 @@ class _PoseModel:
         if self.couplers is None:
             self.model.assemble(st)
         else:
-            for dep, indep, fn, scale in self.couplers:
-                x = osim.Vector(len(indep), 0.0)
-                for j, c in enumerate(indep):
-                    x.set(j, c.getValue(st))
-                dep.setValue(st, scale * fn.calcValue(x), False)
+            set_coupled(self.couplers, st)
         self.model.realizePosition(st)
         return st
 

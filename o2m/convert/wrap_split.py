@@ -35,6 +35,7 @@ from o2m.convert.lengthvia import shared_segments
 from o2m.convert.records import Approximation
 from o2m.convert.wraps import wrap_segments
 from o2m.osim import runtime
+from o2m.osim.couplers import coupler_chain, set_coupled
 from o2m.osim.paths import Path, PathPoint, WrapObject
 from o2m.transforms import Transform
 
@@ -76,13 +77,17 @@ class _OpenSimPaths:
         cs = self.model.getCoordinateSet()
         free = [cs.get(i) for i in range(cs.getSize()) if not cs.get(i).getLocked(state0)
                 and not cs.get(i).isDependent(state0)]
+        couplers = coupler_chain(self.model, state0)
         for _ in range(n_poses):
             st = self.opensim.State(state0)
             for c in free:
                 lo, hi = runtime.sample_bounds(c)
                 c.setValue(st, float(rng.uniform(lo, hi)), False)
             try:
-                self.model.assemble(st)
+                if couplers is None:
+                    self.model.assemble(st)
+                else:
+                    set_coupled(couplers, st)
                 self.model.realizePosition(st)
             except Exception:  # an assembly failure: a pose fewer
                 continue

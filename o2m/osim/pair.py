@@ -19,6 +19,7 @@ from o2m.errors import MissingJointError
 from o2m.mj.posing import joint_equality_plan, joint_qpos_address, load_mjcf
 from o2m.mj.tendons import mujoco_tendon_lengths
 from o2m.osim import runtime
+from o2m.osim.couplers import coupler_chain, set_coupled
 from o2m.osim.names import opensim_coordinate_names
 
 __all__ = ["ModelPair", "is_actuator", "path_forces"]
@@ -87,6 +88,7 @@ class ModelPair:
         os_names = {n for n, _, _ in self.forces}
         self.extra_tendons = [n for n in tendon_names if n not in os_names]
         self._spans: dict[str, set[str]] | None = None
+        self.couplers = coupler_chain(self.os_model, self.init_state)
 
     # -- OpenSim ------------------------------------------------------------------------
     def name(self, c: Any) -> str:
@@ -95,8 +97,10 @@ class ModelPair:
 
     def os_state(self, values: Mapping[str, float] | None, assemble: bool = True) -> Any:
         """A realised OpenSim state: init_state when ``values`` is None, else a copy with the
-        given independent coordinates set and assembled (when ``assemble``, or when some
-        coordinate is dependent). Raises on assembly failure."""
+        given independent coordinates set and the constraints satisfied: the dependent
+        coordinates set from their couplers where those are the only constraints
+        (:mod:`o2m.osim.couplers`), else assembled (when ``assemble``, or when some coordinate is
+        dependent). Raises on assembly failure."""
         if values is None:
             state = self.init_state
         else:
@@ -104,7 +108,9 @@ class ModelPair:
             for c, n in zip(self.indep, self.indep_names, strict=True):
                 if n in values:
                     c.setValue(state, float(values[n]), False)
-            if assemble or self.dependent:
+            if self.couplers is not None:
+                set_coupled(self.couplers, state)
+            elif assemble or self.dependent:
                 # a fresh assembly solver: where one assembly fails, OpenSim's Model::assemble
                 # relaxes the constraints (weight 20) for good, after which an assembled
                 # coordinate moves 1/21 of its step (Rajagopal2016's knee after a pose just below
