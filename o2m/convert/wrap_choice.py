@@ -197,7 +197,8 @@ def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tup
                 path.append(("wrap_site", (w.target.name,)))
         elif kind in (mujoco.mjtWrap.mjWRAP_SPHERE, mujoco.mjtWrap.mjWRAP_CYLINDER):
             if w.target.name not in dropped:
-                path.append(("wrap_geom", (w.target.name, w.sidesite.name if w.sidesite else "")))
+                side = w.sidesite.name if w.sidesite and w.sidesite.name not in dropped else ""
+                path.append(("wrap_geom", (w.target.name, side)))
         elif kind == mujoco.mjtWrap.mjWRAP_JOINT:
             path.append(("wrap_joint", (w.target.name, w.coef)))
         elif kind == mujoco.mjtWrap.mjWRAP_PULLEY:

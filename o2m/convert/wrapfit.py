@@ -6,8 +6,8 @@ round a geom the tendon goes), :func:`fit_paths` adjusts, per tendon, the positi
 each of its wrap geoms and the position of each side site so that MuJoCo's tendon length and
 moment arms match OpenSim's over sampled poses:
 
-* Poses: every independent coordinate drawn uniformly in its range (seeded); OpenSim assembles
-  each pose and MuJoCo takes its independent values, equality-driven joints resolved.
+* Poses: every independent coordinate drawn uniformly in its range (seeded); OpenSim poses
+  each (:meth:`~o2m.osim.pair.ModelPair.os_state`), MuJoCo takes its independent values.
 * Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
   OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
   them), for every coordinate the path spans; the drawn path's where OpenSim's length is not it
@@ -17,15 +17,14 @@ moment arms match OpenSim's over sampled poses:
   ``computeMomentArm``); for one with a length via point (:mod:`o2m.lengthvia`), its designed
   length and that length's ``-dL/dq``.
 * Objective: mean squared length error plus mean squared moment-arm error, both in mm².
-  MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a reduced copy of the model
-  (that tendon only, no meshes) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are changed in
-  place; moment arms from the tendon Jacobian projected on each coordinate's direction.
+  MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a copy of the model reduced to
+  that tendon (:mod:`o2m.convert.reduced`) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are
+  changed in place; moment arms from the tendon Jacobian projected on each coordinate's direction.
 * Start: the converted geoms, except that a geom standing for a WrapEllipsoid or a WrapTorus also gets the
   sphere (or, for a cylinder, the circle about its axis) fitted by least squares to the points
   where OpenSim's path touches the ellipsoid (its wrap arcs over the fitting poses); CMA-ES
-  starts from whichever of the two fits better. (A mean-radius sphere misses the part of the
-  ellipsoid the path actually runs over: Arm26's BIClong over BIClonghh is 1.6 mm too long at
-  the default pose with it, 0.07 mm with the contact sphere.)
+  starts from whichever of the two fits better (a mean-radius sphere misses the part of the
+  ellipsoid the path runs over).
 * Optimiser: CMA-ES (:mod:`cma`), two starts per tendon (seeded from its name, so that a fit does
   not change with the others; the best kept), parallel over tendons in a process pool.
 * Variants: a tendon with a split segment (:mod:`o2m.convert.wrap_split`) is fitted once per
@@ -34,7 +33,8 @@ moment arms match OpenSim's over sampled poses:
   poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
-  start. Each tendon's errors before and after go into the conversion report.
+  start. An ellipsoid stand-in's side site that changes nothing at the poses is then left out
+  (:data:`SIDE_OPTIONAL_KINDS`). Each tendon's errors before and after go into the report.
 """
 
 from __future__ import annotations
@@ -67,6 +67,11 @@ CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
 OS_FD_STEP = 1e-5
 #: OpenSim moment arms by steps of 1 and 10 OS_FD_STEP that differ by more than this (m) are left out.
 MA_CONSISTENCY = 1e-3
+#: OpenSim wrap objects whose path never switches ways round (``WrapEllipsoid::wrapLine`` moves it
+#: continuously): their stand-in's side site, where it changes nothing at the poses, is left out,
+#: so that MuJoCo takes the shorter way and cannot switch between the poses drawn (MoBL-ARMS's FCU
+#: near full extension). A sphere's or cylinder's side site stands for OpenSim's own switch.
+SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
 #: A side site is kept at least this many radii from its geom's centre (axis, for a cylinder).
@@ -153,6 +158,10 @@ class _Evaluator:
         self.via0 = self.m.site_pos[self.vid].copy()
         self.n_params = 7 * len(self.gid) + 3 * len(self.vid)
         self.evaluations = 0
+        adr, num = int(self.m.tendon_adr[0]), int(self.m.tendon_num[0])
+        geom_wraps = (int(mujoco.mjtWrap.mjWRAP_SPHERE), int(mujoco.mjtWrap.mjWRAP_CYLINDER))
+        self.wrap_of = {int(self.m.wrap_objid[w]): w for w in range(adr, adr + num)
+                        if int(self.m.wrap_type[w]) in geom_wraps}  # geom id -> its path element
 
     def via_positions(self, theta: np.ndarray) -> np.ndarray:
         """Positions (body frames, (n vias, 3)) of the fitted via sites for parameters ``theta``."""
@@ -240,6 +249,24 @@ class _Evaluator:
         self.evaluations += 1
         return length - t.length[rows], arm - t.arm[rows]
 
+    def unneeded_side_sites(self, theta: np.ndarray, rows: slice) -> list[str]:
+        """The side sites of :data:`SIDE_OPTIONAL_KINDS` stand-ins that change no length and no
+        moment arm at the poses ``rows`` (each left out in turn, kept out where nothing changed)."""
+        le, me = self.errors(theta, rows)
+        out = []
+        for k, g in enumerate(self.gid):
+            if not self.has_side[k] or self.t.kinds[k] not in SIDE_OPTIONAL_KINDS:
+                continue
+            w = self.wrap_of[g]
+            side = self.m.wrap_prm[w]
+            self.m.wrap_prm[w] = -1
+            le_without, me_without = self.errors(theta, rows)
+            if np.array_equal(le_without, le) and np.array_equal(me_without, me, equal_nan=True):
+                out.append(self.t.sites[k])
+            else:
+                self.m.wrap_prm[w] = side
+        return out
+
     def objective(self, theta: np.ndarray, rows: slice) -> float:
         le, me = self.errors(theta, rows)
         return _objective(le, me)
@@ -307,13 +334,14 @@ def _fit_one(task: _Task) -> PathFit:
                     and after["len_max_pct"] <= before["len_max_pct"] and ca["len_max_pct"] <= cb["len_max_pct"])
     if not accepted:
         best_x, after, ca = x0, before, cb
+    unneeded = ev.unneeded_side_sites(best_x, slice(0, len(task.qpos)))
     pos, rad, side = ev.values(best_x)
     values = {g: {"pos": pos[k].tolist(), "radius": [float(rad[k])]} for k, g in enumerate(task.geoms)}
-    values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites) if s})
+    values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites) if s and s not in unneeded})
     values.update({s: {"pos": p.tolist()} for s, p in zip(task.vias, ev.via_positions(best_x), strict=True)})
     return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
                    before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values,
-                   task.variant, list(task.dropped))
+                   task.variant, list(task.dropped) + unneeded)
 
 
 # --------------------------------------------------------------------------------------------
@@ -458,10 +486,10 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     """Fit the wrap geoms and side sites of every tendon in ``path_geoms`` (each a
     :class:`o2m.tendons.PathGeom`) of the model ``xml`` (MJCF text) to OpenSim ``osim_path``.
 
-    ``quick`` uses :data:`QUICK` sizes instead of :data:`FULL`;
-    ``n_poses``/``evals``/``starts`` override them. ``workers`` processes (default: every core) fit the
-    tendons in parallel. ``held`` (:attr:`o2m.tendons.TendonBuilder.held`) names the tendons whose
-    same-body segments are held, and how; ``designed`` (tendon -> its
+    ``quick``: :data:`QUICK` sizes, not :data:`FULL` (``n_poses``/``evals``/``starts`` override
+    them). ``workers`` processes (default: every core) fit the tendons in parallel. ``held``
+    (:attr:`o2m.tendons.TendonBuilder.held`): the tendons whose same-body segments are held, and
+    how; ``designed`` (tendon -> its
     :class:`o2m.lengthvia.LengthVia` records) the tendons whose lengths are designed there (their
     targets are those lengths); ``vias`` (tendon -> site names) the via sites fitted with a
     tendon's geoms (:mod:`o2m.convert.wrap_split`'s); ``variants`` (tendon -> its
@@ -470,7 +498,6 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     with the smallest objective over all its poses kept. Each tendon's CMA-ES seed follows from
     ``seed`` and its name alone. Returns one :class:`PathFit` per tendon, in ``path_geoms`` order.
     """
-
     sizes = QUICK if quick else FULL
     n_fit = int(n_poses or sizes["poses"])
     n_check = max(10, n_fit // 2) if n_poses else sizes["check"]
