@@ -67,10 +67,9 @@ CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
 OS_FD_STEP = 1e-5
 #: OpenSim moment arms by steps of 1 and 10 OS_FD_STEP that differ by more than this (m) are left out.
 MA_CONSISTENCY = 1e-3
-#: OpenSim wrap objects whose path never switches ways round (``WrapEllipsoid::wrapLine`` moves it
-#: continuously): their stand-in's side site, where it changes nothing at the poses, is left out,
-#: so that MuJoCo takes the shorter way and cannot switch between the poses drawn (MoBL-ARMS's FCU
-#: near full extension). A sphere's or cylinder's side site stands for OpenSim's own switch.
+#: OpenSim wraps whose path never switches ways round (``WrapEllipsoid::wrapLine``): their stand-in's
+#: side site, where it changes nothing at the poses, is left out, so that MuJoCo takes the shorter
+#: way and cannot switch between the poses drawn (a sphere's or cylinder's is OpenSim's own switch).
 SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
