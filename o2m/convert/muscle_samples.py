@@ -386,8 +386,10 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_le
         raise ModelFileError(f"{osim_path}: muscle(s) {', '.join(missing)} not found in the ForceSet")
     for k, i in enumerate(supported):
         if not np.isfinite(all_lengths[:, i]).any():
+            winds = ", or its path winds over a full turn round a wrap" if i in pm.wrapped else ""
             raise doc.error(elements[names[k]], f"has no finite length at any of the {len(all_lengths)} poses "
-                                                f"sampled (OpenSim gives inf or NaN: a path point too far out?)")
+                                                f"sampled (OpenSim gives inf or NaN: a path point too far out?"
+                                                f"{winds})")
     bench = _Bench(doc, [elements[n] for n in names])
     lr, notes = _lengthranges(all_lengths, supported, names, n_failed)
     grid = lr[:, :1] + (lr[:, 1:] - lr[:, :1]) * np.linspace(0.0, 1.0, N_EVAL)[None, :]
