@@ -23,7 +23,7 @@ from lxml import etree
 from o2m.convert.muscle_types import _activation_times, _force_velocity, _prop
 from o2m.errors import ModelFileError
 from o2m.osim import runtime
-from o2m.osim.couplers import coupler_chain, set_coupled
+from o2m.osim.couplers import coupler_chain, satisfy_constraints
 from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
 from o2m.osim.names import opensim_coordinate_names
 from o2m.osim.simulate import tendon_force
@@ -110,10 +110,7 @@ class _PoseModel:
         st = osim.State(self.state)
         for c, v in zip(self.indep, q, strict=True):
             c.setValue(st, float(v), False)
-        if self.couplers is None:
-            self.model.assemble(st)
-        else:
-            set_coupled(self.couplers, st)
+        satisfy_constraints(self.model, self.couplers, st)
         self.model.realizePosition(st)
         return st
 

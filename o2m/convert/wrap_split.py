@@ -35,7 +35,7 @@ from o2m.convert.lengthvia import shared_segments
 from o2m.convert.records import Approximation
 from o2m.convert.wraps import wrap_segments
 from o2m.osim import runtime
-from o2m.osim.couplers import coupler_chain, set_coupled
+from o2m.osim.couplers import coupler_chain, satisfy_constraints
 from o2m.osim.paths import Path, PathPoint, WrapObject
 from o2m.transforms import Transform
 
@@ -84,10 +84,7 @@ class _OpenSimPaths:
                 lo, hi = runtime.sample_bounds(c)
                 c.setValue(st, float(rng.uniform(lo, hi)), False)
             try:
-                if couplers is None:
-                    self.model.assemble(st)
-                else:
-                    set_coupled(couplers, st)
+                satisfy_constraints(self.model, couplers, st)
                 self.model.realizePosition(st)
             except Exception:  # an assembly failure: a pose fewer
                 continue

@@ -2,8 +2,9 @@
 
 A coupler says ``dependent = scale_factor * function(independents)``. Setting each dependent
 from its function, after the coordinates it depends on, satisfies every such constraint exactly;
-OpenSim's assembler (``Model::assemble``) reaches the same pose to its tolerance, about twenty
-times slower, and can fail and relax the constraints at poses where the function is defined.
+OpenSim's assembler (``Model::assemble``) reaches the same pose to its tolerance, iteratively
+(so much more slowly), and can fail and relax the constraints at poses where the function is
+defined.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import Any
 
 from o2m.osim import runtime
 
-__all__ = ["coupler_chain", "set_coupled"]
+__all__ = ["coupler_chain", "satisfy_constraints", "set_coupled"]
 
 
 def coupler_chain(model: Any, state: Any) -> list[tuple[Any, list[Any], Any, float]] | None:
@@ -68,3 +69,13 @@ def set_coupled(chain: list[tuple[Any, list[Any], Any, float]], state: Any) -> N
         for j, c in enumerate(indep):
             x.set(j, c.getValue(state))
         dep.setValue(state, scale * fn.calcValue(x), False)
+
+
+def satisfy_constraints(model: Any, chain: list[tuple[Any, list[Any], Any, float]] | None, state: Any) -> None:
+    """Satisfy ``model``'s constraints in ``state``: from the couplers of ``chain`` where
+    :func:`coupler_chain` found them the only ones, else by OpenSim's assembler (which raises
+    where it fails)."""
+    if chain is None:
+        model.assemble(state)
+    else:
+        set_coupled(chain, state)
