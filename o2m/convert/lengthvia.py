@@ -208,7 +208,7 @@ class _ViaFit:
     of ``|P1 V| + |V P2|`` against ``arm_mid`` (between poses, m) where no step is ``spiky``, its
     length against ``part`` (m) and beyond ``allowed`` (m) where no pose is a ``spike``. The
     Jacobian is exact (a path of two straight lines), so that ``least_squares`` spends no 15
-    evaluations per step on finite differences, most of a conversion's time in these fits."""
+    residual evaluations per step on finite differences."""
 
     basis: np.ndarray  # (n, 5)
     p1: np.ndarray  # (3,)

@@ -3,10 +3,10 @@
 The wrap fit (:mod:`o2m.convert.wrapfit`) evaluates one tendon's length and Jacobian at a
 hundred poses per candidate, hundreds of thousands of times per tendon. What that needs is the
 kinematic tree and the tendon's own sites and geoms; ``mj_kinematics`` otherwise places every
-other site and geom of the model at every pose (MoBL-ARMS with its wraps: 425 sites and 140
-geoms for a tendon of a dozen), which took about half of each evaluation. Removing them changes
-no length or Jacobian entry: each site and geom is placed from its own body alone, and every body
-keeps its ``<inertial>`` (a body without one keeps its geoms, which would give it its mass).
+other site and geom of the model at every pose, for a tendon that uses a few of them. Removing
+them changes no length or Jacobian entry: each site and geom is placed from its own body alone,
+and every body keeps its ``<inertial>`` (a body without one keeps its geoms, which would give it
+its mass).
 """
 
 from __future__ import annotations
