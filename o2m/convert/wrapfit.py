@@ -6,16 +6,9 @@ round a geom the tendon goes), :func:`fit_paths` adjusts, per tendon, the positi
 each of its wrap geoms and the position of each side site so that MuJoCo's tendon length and
 moment arms match OpenSim's over sampled poses:
 
-* Poses: every independent coordinate drawn uniformly in its range (seeded); OpenSim poses
-  each (:meth:`~o2m.osim.pair.ModelPair.os_state`), MuJoCo takes its independent values.
-* Targets: OpenSim ``getLength`` and the moment arms ``-dL/dq`` by central differences in
-  OpenSim (dependent coordinates following their couplers, as MuJoCo's joint equalities make
-  them), for every coordinate the path spans; the drawn path's where OpenSim's length is not it
-  (:mod:`o2m.convert.drawn_arms`). For a tendon whose same-body segments are held
-  (``path_forces="opensim"``, :mod:`o2m.tendons`) the targets are what that tendon stands for:
-  the length with those segments replaced by their held length, and its ``-dL/dq`` (OpenSim's
-  ``computeMomentArm``); for one with a length via point (:mod:`o2m.lengthvia`), its designed
-  length and that length's ``-dL/dq``.
+* Poses and targets (:mod:`o2m.convert.wrap_targets`): random poses in the coordinates' ranges,
+  OpenSim's length and moment arms ``-dL/dq`` there for every coordinate the path spans (or what
+  a held or designed tendon stands for), OpenSim's own failures left out.
 * Objective: mean squared length error plus mean squared moment-arm error, both in mm².
   MuJoCo's lengths come from ``mj_kinematics`` + ``mj_tendon`` on a copy of the model reduced to
   that tendon (:mod:`o2m.convert.reduced`) whose ``geom_pos``, ``geom_size`` and ``site_pos`` are
@@ -33,8 +26,9 @@ moment arms match OpenSim's over sampled poses:
   poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
-  start. An ellipsoid stand-in's side site that changes nothing at the poses is then left out
-  (:data:`SIDE_OPTIONAL_KINDS`). Each tendon's errors before and after go into the report.
+  start. An ellipsoid stand-in's side site whose leaving out makes the tendon no further from
+  OpenSim at the poses is then left out (:data:`SIDE_OPTIONAL_KINDS`). Each tendon's errors
+  before and after go into the report.
 """
 
 from __future__ import annotations
@@ -50,9 +44,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from o2m.convert.drawn_arms import drawn_gaps, drawn_path_arms, drawn_targets
 from o2m.convert.reduced import reduced_xml, without_unused
 from o2m.convert.wrap_choice import best_variant, drop_from_spec, whole_and_straight, xml_without
+from o2m.convert.wrap_targets import fit_targets
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
 
@@ -63,13 +57,10 @@ QUICK = {"poses": 40, "check": 30, "evals": 400, "starts": 2}
 #: OpenSim wrap objects whose stand-in may start from the sphere or circle fitted to OpenSim's
 #: contact points (their geom is not the object itself).
 CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
-#: Central-difference step of OpenSim's moment arms (radians or metres).
-OS_FD_STEP = 1e-5
-#: OpenSim moment arms by steps of 1 and 10 OS_FD_STEP that differ by more than this (m) are left out.
-MA_CONSISTENCY = 1e-3
 #: OpenSim wraps whose path never switches ways round (``WrapEllipsoid::wrapLine``): their stand-in's
-#: side site, where it changes nothing at the poses, is left out, so that MuJoCo takes the shorter
-#: way and cannot switch between the poses drawn (a sphere's or cylinder's is OpenSim's own switch).
+#: side site, where leaving it out makes no length or moment arm at the poses worse, is left out, so
+#: that MuJoCo takes the shorter way and cannot switch where OpenSim does not, between the poses
+#: drawn or beyond a coordinate's range (a sphere's or cylinder's side site is OpenSim's own switch).
 SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
@@ -249,9 +240,13 @@ class _Evaluator:
         return length - t.length[rows], arm - t.arm[rows]
 
     def unneeded_side_sites(self, theta: np.ndarray, rows: slice) -> list[str]:
-        """The side sites of :data:`SIDE_OPTIONAL_KINDS` stand-ins that change no length and no
-        moment arm at the poses ``rows`` (each left out in turn, kept out where nothing changed)."""
+        """The side sites of :data:`SIDE_OPTIONAL_KINDS` stand-ins whose leaving out makes
+        neither the objective nor the worst length error worse at the poses ``rows`` (each left
+        out in turn, kept out where nothing got worse): a side site that makes the tendon go the
+        long way round only where that is no nearer OpenSim would still switch it there, and
+        beyond the poses (a range's end) a switch OpenSim's ellipsoid never makes."""
         le, me = self.errors(theta, rows)
+        length = self.t.length[rows]
         out = []
         for k, g in enumerate(self.gid):
             if not self.has_side[k] or self.t.kinds[k] not in SIDE_OPTIONAL_KINDS:
@@ -260,8 +255,10 @@ class _Evaluator:
             side = self.m.wrap_prm[w]
             self.m.wrap_prm[w] = -1
             le_without, me_without = self.errors(theta, rows)
-            if np.array_equal(le_without, le) and np.array_equal(me_without, me, equal_nan=True):
+            if (_objective(le_without, me_without) <= _objective(le, me)
+                    and _worst_pct(le_without, length) <= _worst_pct(le, length)):
                 out.append(self.t.sites[k])
+                le, me = le_without, me_without
             else:
                 self.m.wrap_prm[w] = side
         return out
@@ -275,7 +272,7 @@ class _Evaluator:
         L = self.t.length[rows]
         ok = np.isfinite(me)
         return {"len_rms_mm": float(np.sqrt(np.mean(le**2)) * 1e3), "len_max_mm": float(np.max(np.abs(le)) * 1e3),
-                "len_max_pct": float(np.max(np.abs(le) / np.maximum(L, 1e-9)) * 100),
+                "len_max_pct": _worst_pct(le, L),
                 "ma_rms_mm": float(np.sqrt(np.mean(me[ok] ** 2)) * 1e3) if ok.any() else 0.0,
                 "objective": _objective(le, me), "poses": len(le)}
 
@@ -297,6 +294,11 @@ def _objective(le: np.ndarray, me: np.ndarray) -> float:
     """Mean squared length error plus mean squared moment-arm error (mm²); NaN targets left out."""
     ok = np.isfinite(me)
     return float(np.mean(le**2) * 1e6 + (np.mean(me[ok] ** 2) * 1e6 if ok.any() else 0.0))
+
+
+def _worst_pct(le: np.ndarray, length: np.ndarray) -> float:
+    """Largest length error (%) of errors ``le`` against OpenSim's lengths ``length`` (m)."""
+    return float(np.max(np.abs(le) / np.maximum(length, 1e-9)) * 100)
 
 
 def _fit_one(task: _Task) -> PathFit:
@@ -344,136 +346,8 @@ def _fit_one(task: _Task) -> PathFit:
 
 
 # --------------------------------------------------------------------------------------------
-# OpenSim side and the driver
+# The driver (OpenSim's targets: o2m.convert.wrap_targets)
 # --------------------------------------------------------------------------------------------
-
-
-def _held_correction(pair: Any, state: Any, held: dict[str, dict], col: dict[str, int]) -> np.ndarray:
-    """(n paths,) what a held tendon's length differs from OpenSim's getLength in ``state``: its
-    held length minus the current length of its held same-body segments (0 for other paths)."""
-    out = np.zeros(len(col))
-    for name, h in held.items():
-        if name not in col:
-            continue
-        pps = pair.force(name).getGeometryPath().getPathPointSet()
-        now = sum(float(np.linalg.norm(pps.get(a).getLocationInGround(state).to_numpy()
-                                       - pps.get(b).getLocationInGround(state).to_numpy())) for a, b in h["pairs"])
-        out[col[name]] = h["length"] - now
-    return out
-
-
-def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: dict[str, int]) -> np.ndarray:
-    """(n paths,) what a tendon with length via points differs from OpenSim's getLength in
-    ``state`` (:func:`o2m.lengthvia.designed_correction`; 0 for other paths)."""
-    from o2m.convert.lengthvia import designed_correction
-
-    out = np.zeros(len(col))
-    for name, vias in designed.items():
-        if name in col:
-            out[col[name]] = sum(designed_correction(pair.os_model, state, v) for v in vias)
-    return out
-
-
-def _targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
-             held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
-             n_contact: int = 0, designed: dict[str, list] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
-    """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
-    (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
-    ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
-    wrap objects named in ``contacts`` (tendon -> wrap names)."""
-    from o2m.mj.posing import joint_qpos_address, resolve_joint_equalities
-    from o2m.mj.tendons import coordinate_direction, qpos_to_dof
-    from o2m.osim.pair import ModelPair
-    from o2m.osim.runtime import sample_bounds
-    from o2m.osim.spikes import SPIKE_TOL, band_suspects, opensim_failures, wrap_contacts
-
-    pair = ModelPair(osim_path, xml_path)
-    m = pair.mj_model
-    names = [n for n, _, _ in pair.matched]
-    col = {n: i for i, n in enumerate(names)}
-    spans = pair.spanned()
-    wanted = [t for t in tendons if t in col]
-    held = {t: h for t, h in (held or {}).items() if t in wanted}
-    designed = {t: v for t, v in (designed or {}).items() if t in wanted}
-
-    def corrections(state: Any) -> np.ndarray:  # what each target differs from getLength by
-        return _held_correction(pair, state, held, col) + _designed_correction(pair, state, designed, col)
-    coords = sorted(set().union(*[spans.get(t, set()) for t in wanted]) if wanted else set(),
-                    key=pair.indep_names.index)
-    rng = np.random.default_rng(seed)
-    bounds = np.array([sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
-    qpos, lengths, arms, valid, drawn_arms, gaps = [], [], [], [], [], []  # the last two: drawn_arms's
-    touched: list[dict[str, dict[str, list[np.ndarray]]]] = []  # per pose: tendon -> wrap -> points
-    contacts = {t: w for t, w in (contacts or {}).items() if t in wanted and w}
-    wanted_idx = np.array([col[t] for t in wanted], dtype=int)
-    plain = {col[t]: spans.get(t, set()) for t in wanted if t not in held and t not in designed}  # others: own targets
-    attempts = 0
-    while len(qpos) < n_poses and attempts < 4 * n_poses:
-        attempts += 1
-        values = dict(zip(pair.indep_names, rng.uniform(bounds[:, 0], bounds[:, 1]), strict=True))
-        try:
-            state = pair.os_state(values)
-            values = pair.os_indep_values(state)
-            raw = pair.os_lengths(state)
-            base = raw + corrections(state)
-            arm = np.zeros((len(names), len(coords)))
-            asm = bool(pair.dependent)
-            stepped = {}  # coordinate -> its states at +-10 OS_FD_STEP, which drawn_path_arms reuses
-            for j, c in enumerate(coords):
-                ma = []
-                for h in (OS_FD_STEP, 10 * OS_FD_STEP):
-                    s_up = pair.os_state({**values, c: values[c] + h}, assemble=asm)
-                    up = pair.os_lengths(s_up) + corrections(s_up)
-                    s_dn = pair.os_state({**values, c: values[c] - h}, assemble=asm)
-                    dn = pair.os_lengths(s_dn) + corrections(s_dn)
-                    ma.append(-(up - dn) / (2 * h))
-                stepped[c] = (s_up, s_dn)
-                # a length discontinuity within the step (a wrap flipping) is no moment arm
-                arm[:, j] = np.where(np.abs(ma[0] - ma[1]) <= MA_CONSISTENCY, ma[0], np.nan)
-            drawn_arm = drawn_path_arms(pair, state, values, coords, plain, arm, 10 * OS_FD_STEP, stepped)
-            gap = drawn_gaps(pair, state, plain, raw)
-        except Exception:  # assembly failure: draw another pose
-            continue
-        # OpenSim's own length spiking here (a wrap going the wrong way round) is no target
-        ok = np.ones(len(names), dtype=bool)
-        converted = pair.mj_lengths(values)[pair.tendon_ids]
-        err = np.abs(converted - base)
-        suspects = wanted_idx[err[wanted_idx] > SPIKE_TOL]
-        banded = np.intersect1d(band_suspects(converted, base), wanted_idx)
-        for i in opensim_failures(pair, values, suspects, raw, banded):
-            ok[i] = False
-        # a wrap arc OpenSim draws with non-finite points (MoBL_ARMS_model_for_mujoco.osim's DELT3 at
-        # one pose of the full fit's): no target, and one NaN would spread to every pose's
-        ok &= np.isfinite(raw) & np.isfinite(gap)
-        valid.append(ok)
-        touched.append({t: wrap_contacts(pair, state, t, w) for t, w in contacts.items()}
-                       if len(touched) < n_contact else {})
-        q = np.array(m.qpos0, dtype=float)
-        for n, v in values.items():
-            q[joint_qpos_address(m, n)] = v
-        resolve_joint_equalities(m, q, pair.plan)
-        qpos.append(q)
-        lengths.append(base)
-        arms.append(arm)
-        drawn_arms.append(drawn_arm)
-        gaps.append(gap)
-    qpos_a, len_a, arm_a, ok_a = np.array(qpos), np.array(lengths), np.array(arms), np.array(valid)
-    dv_all = np.array([[qpos_to_dof(m, coordinate_direction(m, q, joint_qpos_address(m, c), pair.plan))
-                        for c in coords] for q in qpos_a]).reshape(len(qpos_a), len(coords), m.nv)
-    out = {}
-    for t in wanted:
-        cs = [j for j, c in enumerate(coords) if c in spans.get(t, set())]
-        rows = ok_a[:, col[t]]
-        length, arm = drawn_targets(len_a[rows, col[t]], np.array(gaps)[rows, col[t]], arm_a[rows, col[t]][:, cs],
-                                    np.array(drawn_arms)[rows, col[t]][:, cs])
-        out[t] = {"qpos": qpos_a[rows], "dv": dv_all[rows][:, cs, :], "length": length,
-                  "arm": arm, "coordinates": [coords[j] for j in cs],
-                  "spikes": int(np.sum(~rows)), "contacts": {}}
-        for k, pose in enumerate(touched):
-            if ok_a[k, col[t]]:
-                for w, pts in pose.get(t, {}).items():
-                    out[t]["contacts"].setdefault(w, []).extend(pts)
-    return m, out
 
 
 def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any], *, seed: int = 0,
@@ -511,7 +385,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         with open(path, "w") as fh:
             fh.write(reduced_xml(xml))
         ellipsoids = {t: {g.source for g in gs if g.kind in CONTACT_KINDS} for t, gs in by_tendon.items()}
-        _, targets = _targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
+        _, targets = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
                               ellipsoids, n_fit, designed)
     tasks = []
     for tendon, geoms in by_tendon.items():

@@ -1,5 +1,6 @@
-"""The wrap fit leaves out an ellipsoid stand-in's side site that changes no length at its poses
-(``wrapfit._Evaluator.unneeded_side_sites``), and drop_from_spec then keeps the geom without it."""
+"""The wrap fit leaves out an ellipsoid stand-in's side site whose leaving out makes no length or
+moment arm at its poses worse (``wrapfit._Evaluator.unneeded_side_sites``), and drop_from_spec then
+keeps the geom without it."""
 
 from __future__ import annotations
 
@@ -35,21 +36,38 @@ _XML = """
 """
 
 
-def _evaluator(side: str, kind: str = "WrapEllipsoid") -> _Evaluator:
-    """The wrap fit's evaluator of the tendon, its sphere standing for an OpenSim ``kind``."""
+def _evaluator(side: str, kind: str = "WrapEllipsoid",
+               targets: tuple[np.ndarray, np.ndarray] | None = None) -> _Evaluator:
+    """The wrap fit's evaluator of the tendon, its sphere standing for an OpenSim ``kind`` whose
+    lengths (m, (9,)) and moment arms (m, (9, 1)) at the 9 poses are ``targets`` (zeros when None)."""
     qpos = np.linspace(-0.1, 0.1, 9)[:, None]
     n = len(qpos)
+    length, arm = (np.zeros(n), np.zeros((n, 1))) if targets is None else targets
     task = _Task("m", _XML.format(side=side), ["ball"], ["ball_side"], [kind], qpos,
-                 np.ones((n, 1, 1)), np.zeros(n), np.zeros((n, 1)), n, ["q"], 0, 0)
+                 np.ones((n, 1, 1)), length, arm, n, ["q"], 0, 0)
     return _Evaluator(task)
 
 
-def test_a_side_site_on_the_short_way_is_left_out_and_one_on_the_long_way_kept():
-    # the short way is over the top at every pose
-    over = _evaluator("0 0 0.1")
+def _lengths(side: str) -> tuple[np.ndarray, np.ndarray]:
+    """The tendon's lengths (m, (9,)) and moment arms (m, (9, 1)) at the 9 poses with the side
+    site at ``side``."""
+    ev = _evaluator(side)
+    return ev.errors(np.zeros(ev.n_params), slice(0, 9))
+
+
+def test_a_side_site_on_the_short_way_is_left_out_and_one_on_opensims_long_way_kept():
+    over = _evaluator("0 0 0.1", targets=_lengths("0 0 0.1"))  # the short way, over the top, everywhere
     assert over.unneeded_side_sites(np.zeros(over.n_params), slice(0, 9)) == ["ball_side"]
-    under = _evaluator("0 0 -0.1")  # MuJoCo goes under, the long way, at these poses
+    # MuJoCo goes under, the long way, at these poses, as OpenSim does
+    under = _evaluator("0 0 -0.1", targets=_lengths("0 0 -0.1"))
     assert under.unneeded_side_sites(np.zeros(under.n_params), slice(0, 9)) == []
+
+
+def test_a_side_site_taking_a_long_way_opensim_does_not_take_is_left_out():
+    # OpenSim goes the short way; the side site would send MuJoCo the long way
+    assert np.all(_lengths("0 0 -0.1")[0] > _lengths("0 0 0.1")[0] + 1e-3)
+    under = _evaluator("0 0 -0.1", targets=_lengths("0 0 0.1"))
+    assert under.unneeded_side_sites(np.zeros(under.n_params), slice(0, 9)) == ["ball_side"]
 
 
 def test_a_wrap_spheres_side_site_stays_it_is_opensims_switch():
