@@ -117,6 +117,8 @@ class DynamicsReport:
         path_flips: MuJoCo tendon lengths that jump during the runs where OpenSim's path does not
             (a path round the wrong side of a wrap), as :func:`o2m.validate.jumps.trajectory_jumps`
             lists them (``trajectory`` is the set's index).
+        path_jumps_at_opensim_failures: the same jumps where OpenSim's own path winds or loops
+            round a wrap (no reference there), with that evidence.
     """
 
     name: str
@@ -133,6 +135,7 @@ class DynamicsReport:
     opensim_seconds: list[float] = field(default_factory=list)
     ranges: np.ndarray | None = None
     path_flips: list[dict] = field(default_factory=list)
+    path_jumps_at_opensim_failures: list[dict] = field(default_factory=list)
 
     @property
     def error(self) -> np.ndarray:
@@ -202,6 +205,9 @@ class DynamicsReport:
                          f"{100 * outside[j]:5.1f}% of samples")
         lines.append(f"  mean abs error over rotational coordinates: {self.mean_rotational_error():.4f} rad")
         lines.append(f"  MuJoCo paths jumping where OpenSim's do not: {_flip_summary(self.path_flips)}")
+        if self.path_jumps_at_opensim_failures:
+            lines.append("  ... and where OpenSim's own path winds or loops round a wrap (left out): "
+                         + _flip_summary(self.path_jumps_at_opensim_failures))
         return "\n".join(lines)
 
     def plot(self, path: str | os.PathLike[str], *, max_sets: int = 5, dpi: int = 80) -> Path:
@@ -340,14 +346,15 @@ def compare_dynamics(osim_path: str | os.PathLike[str], mjcf_path: str | os.Path
     mj[traj.diverged] = np.nan
     ref = np.stack([_opensim_columns(run, names) for run in runs])
     ran = np.flatnonzero(~traj.diverged)
-    flips = [{**f, "trajectory": int(ran[f["trajectory"]])}
-             for f in trajectory_jumps(osim_path, mjcf_path, traj.qpos[ran])["flips"]] if len(ran) else []
+    found = trajectory_jumps(osim_path, mjcf_path, traj.qpos[ran]) if len(ran) else {}
+    flips, at_failures = ([{**f, "trajectory": int(ran[f["trajectory"]])} for f in found.get(key, [])]
+                          for key in ("flips", "at_opensim_failures"))
     rotational = np.array([int(model.jnt_type[model.joint(n).id]) == int(mujoco.mjtJoint.mjJNT_HINGE)
                            for n in names])
     return DynamicsReport(Path(osim_path).stem, exc.times, names, rotational, ref, mj, list(exc.labels),
                           [r.status for r in runs], [r.reason for r in runs], traj.diverged.copy(),
                           [m for m in outline.muscles if m not in actuators], [r.wall_time for r in runs],
-                          np.array([outline.ranges[n] for n in names], float), flips)
+                          np.array([outline.ranges[n] for n in names], float), flips, at_failures)
 
 
 def _opensim_columns(run: OpenSimRun, names: Sequence[str]) -> np.ndarray:

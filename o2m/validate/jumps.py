@@ -17,7 +17,15 @@ from o2m.mj.posing import joint_qpos_address
 from o2m.mj.tendons import tendon_length_steps
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL, sample_bounds
-from o2m.osim.spikes import BAND_STEPS, SPIKE_LINEAR_STEP, SPIKE_STEP, one_pose_spikes, outlying_changes
+from o2m.osim.spikes import (
+    BAND_STEPS,
+    SPIKE_LINEAR_STEP,
+    SPIKE_STEP,
+    one_pose_spikes,
+    opensim_loops,
+    opensim_windings,
+    outlying_changes,
+)
 from o2m.validate.kinematics import jsonable
 from o2m.validate.muscles import LEN_PCT
 
@@ -318,13 +326,17 @@ def trajectory_jumps(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike,
         window: OpenSim shares a jump when its path steps within this many samples either side
             (the two simulators' paths may switch sides at slightly different poses).
     Returns a JSON-safe dict ``{"jumps": [{"tendon", "trajectory", "step", "mujoco", "opensim",
-    "opensim_step"}], "flips": [...]}``: every tendon's largest jump per trajectory above
+    "opensim_step"}], "flips": [...], "at_opensim_failures": [...]}``: every tendon's largest jump per trajectory above
     ``jump_atol`` (metres), with OpenSim's length over the window around it, the independent
     coordinates set from MuJoCo's joints: ``opensim``, its change over the window less MuJoCo's
     smooth change there (a step or a steep stretch OpenSim shares), and ``opensim_step``, its
     largest such change between neighbouring poses (None where OpenSim does not assemble).
     ``flips`` keeps the jumps OpenSim does not share (``opensim`` under half of MuJoCo's jump):
-    a path round the wrong side.
+    a path round the wrong side. Of those, a jump where OpenSim's own path, at the pose before or
+    after it, winds or loops round a wrap (:func:`o2m.osim.spikes.opensim_windings`,
+    :func:`~o2m.osim.spikes.opensim_loops`: no reference there, as in
+    :func:`o2m.validate.muscles.compare_muscles`) goes to ``at_opensim_failures`` instead, with
+    that evidence under ``"opensim_failure"``.
     """
     pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
     model, qpos = pair.mj_model, np.asarray(qpos, float).reshape(-1, *np.shape(qpos)[-2:])
@@ -345,9 +357,34 @@ def trajectory_jumps(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike,
                     row["opensim"], row["opensim_step"] = found
             jumps.append(row)
     jumps.sort(key=lambda j: -j["mujoco"])
-    flips = [j for j in jumps if j["opensim"] is None or j["opensim"] < 0.5 * j["mujoco"]]
+    flips, at_failures = [], []
+    for j in jumps:
+        if j["opensim"] is None or j["opensim"] < 0.5 * j["mujoco"]:
+            failure = _opensim_failure(pair, qpos[j["trajectory"]], j["step"], adr, os_index.get(j["tendon"]))
+            if failure is None:
+                flips.append(j)
+            else:
+                at_failures.append({**j, "opensim_failure": failure})
     return jsonable({"osim_path": pair.osim_path, "mjcf_path": pair.mjcf_path, "jump_atol": jump_atol,
-                     "jumps": jumps, "flips": flips})
+                     "jumps": jumps, "flips": flips, "at_opensim_failures": at_failures})
+
+
+def _opensim_failure(pair: ModelPair, traj: np.ndarray, step: int, adr: dict[str, int],
+                     index: int | None) -> dict[str, Any] | None:
+    """OpenSim's path ``index`` (into ``pair.matched``) winding or looping round a wrap at the
+    MuJoCo pose ``traj[step]`` or ``traj[step + 1]`` (``{"test", "wrap", ...}``), else None."""
+    if index is None:
+        return None
+    for q in traj[step:step + 2]:
+        values = {c: float(q[a]) for c, a in adr.items()}
+        for test in (opensim_windings, opensim_loops):
+            try:
+                found = test(pair, values, [index])
+            except Exception:  # OpenSim fails to assemble there: no evidence
+                found = {}
+            if index in found:
+                return found[index]
+    return None
 
 
 def _opensim_steps(pair: ModelPair, poses: np.ndarray, adr: dict[str, int], index: int,
