@@ -122,8 +122,9 @@ def convert_activation_coordinate_actuator(ctx: _Context, el: etree._Element) ->
     act.dynprm = [tau] + [0.0] * (len(act.dynprm) - 1)
     start = _number(el, "default_activation", 0.5, ctx)
     if start != 0.0:
-        ctx.builder.result.notes.append(f"{el.tag} '{el.get('name')}': OpenSim starts its activation at {start:g}, "
-                                        "MuJoCo's act at 0 (set data.act to match)")
+        ctx.builder.result.activations[el.get("name")] = start
+        ctx.builder.result.notes.append(f"{el.tag} '{el.get('name')}': OpenSim starts its activation at {start:g}; "
+                                        "so does the 'default-pose' keyframe's act (mj_resetData starts it at 0)")
 
 
 def convert_point_to_point_actuator(ctx: _Context, el: etree._Element) -> None:

@@ -217,7 +217,13 @@ class MjcfBuilder:
             self._add_joint(joint)
         for c in self.skel.coordinates.values():
             if c.locked:
-                self.result.notes.append(f"locked coordinate '{c.name}' folded into fixed transforms at {c.default:g}")
+                why = "prescribed constant" if c.prescribed else "locked"
+                self.result.notes.append(f"{why} coordinate '{c.name}' folded into fixed transforms at {c.default:g}")
+            elif c.prescribed:
+                self.result.notes.append(
+                    f"prescribed coordinate '{c.name}': OpenSim moves it as a function of time "
+                    f"({type(c.prescribed_function).__name__}), MuJoCo's joint is free, starting at the "
+                    f"function's value at time 0, {c.default:g}: drive it yourself (e.g. a position actuator)")
         set_extra_armature(self)
         set_complement_armature(self)
         for marker in self.skel.markers:

@@ -9,6 +9,7 @@ no half-written model behind.
 from __future__ import annotations
 
 import hashlib
+import math
 import shutil
 import tempfile
 import time
@@ -192,7 +193,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
         _set_length_ranges(spec, model, builder)
         forces.fit_ligaments(force_conv, spec, model, builder)
         forces.fit_contacts(force_conv, spec, model, builder)
-        spec.add_key(name="default-pose", qpos=model.qpos0.copy())
+        spec.add_key(name="default-pose", qpos=model.qpos0.copy(), act=_default_activations(model, result))
         final = spec.compile()
         if disable_single_island(spec, final):
             result.notes.append("constraint islands disabled (<flag island=\"disable\"/>): the degrees of freedom "
@@ -210,6 +211,8 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
             written = _load_written(xml_path, osim)
         forces.measure(force_conv, written, osim, builder)
         warnings = massless + [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
+        warnings += [f"Coordinate {c.name}: prescribed motion (a function of time) not converted; its MuJoCo "
+                     "joint is free" for c in skel.coordinates.values() if c.prescribed and not c.locked]
         warnings += _divergence(written)
         report = ConversionReport(
             model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
@@ -250,6 +253,8 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
             raise doc.error(el, f"fits a MuJoCo muscle MuJoCo cannot load ({why}): its properties are out of "
                                 f"scale ({props})")
         p.apply_to(act)
+        if math.isfinite(p.default_activation) and p.default_activation > 0.0:
+            result.activations[act.name] = float(np.clip(p.default_activation, p.min_activation, 1.0))
         result.approximations.append(Approximation(
             p.type, p.name, "MuJoCo muscle force-length fitted to OpenSim's tendon force (rigid tendon)",
             float(max(p.err_active_max_pct, p.err_passive_max_pct)), "% of max isometric force",
@@ -257,6 +262,11 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
         for note in p.notes:
             by_note.setdefault(note, []).append(p.name)
     result.notes += [f"{_muscle_list(names)}: {note}" for note, names in by_note.items()]
+    started = sorted(n for n in result.activations if n in fits)
+    if started:
+        result.notes.append(f"{_muscle_list(started)}: the 'default-pose' keyframe's act starts each at its "
+                            "activation in OpenSim's default state (mj_resetDataKeyframe; mj_resetData starts "
+                            "every activation at 0)")
     return list(fits.skipped)
 
 
@@ -302,6 +312,17 @@ def _default_pose(xml: str, qpos0) -> str:
         if key.get("name") == "default-pose":
             key.set("qpos", mjcf_text.number_text(qpos0))
     return mjcf_text.to_text(root)
+
+
+def _default_activations(model: mujoco.MjModel, result) -> np.ndarray:
+    """The ``default-pose`` keyframe's ``act`` (na,): each muscle's activation in OpenSim's default
+    state (``result.activations``), 0 for every other activation state."""
+    act = np.zeros(model.na)
+    for name, a in result.activations.items():
+        aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+        if aid >= 0 and model.actuator_actadr[aid] >= 0:
+            act[model.actuator_actadr[aid]] = a
+    return act
 
 
 def _load_written(xml_path: Path, osim: Path) -> mujoco.MjModel:

@@ -51,8 +51,10 @@ class MuscleSample:
     ``lengthrange`` (m), static tendon forces (N) at activation 1 (``active``) and 0
     (``passive``) at the MTU ``lengths`` (m), the force-velocity multiplier ``fv`` at normalized
     fiber velocities ``fv_u``, MuJoCo time constants ``timeconst`` (s), the notes so far, the
-    ``seed`` of the fit's random restarts and ``min_activation``, the activation OpenSim uses when
-    asked for 0 (Thelen's and Millard's ``minimum_activation``; ``passive`` is taken there)."""
+    ``seed`` of the fit's random restarts, ``min_activation``, the activation OpenSim uses when
+    asked for 0 (Thelen's and Millard's ``minimum_activation``; ``passive`` is taken there), and
+    ``default_activation``, its activation in OpenSim's default state (NaN for a muscle without
+    an activation state)."""
 
     name: str
     type: str
@@ -71,6 +73,7 @@ class MuscleSample:
     notes: list[str]
     seed: int
     min_activation: float = 0.0
+    default_activation: float = math.nan
 
 
 # ---------------------------------------------------------------------------------------------
@@ -91,7 +94,7 @@ class _PoseModel:
         s = self.state
         cs = self.model.getCoordinateSet()
         coords = [cs.get(i) for i in range(cs.getSize())]
-        self.indep = [c for c in coords if not c.getLocked(s) and not c.isDependent(s)]
+        self.indep = [c for c in coords if not runtime.is_held(c, s) and not c.isDependent(s)]
         mj_names = opensim_coordinate_names(self.model)
         self.indep_names = [mj_names[c.getAbsolutePathString()] for c in self.indep]
         self.bounds = np.array([runtime.sample_bounds(c) for c in self.indep], dtype=float).reshape(-1, 2)
@@ -419,8 +422,19 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_le
             lengths=grid[k].copy(), active=f_act[k].copy(), passive=f_pas[k].copy(), fv_u=u, fv=fv,
             timeconst=(float(timeconst[0]), float(timeconst[1])), notes=nt, seed=seed,
             min_activation=_floor_activation(a_pas[k]),
+            default_activation=_default_activation(pm.muscles[i], pm.state),
         ))
     return tasks
+
+
+def _default_activation(muscle, state) -> float:
+    """The activation state of OpenSim ``muscle`` in the model's default ``state`` (its
+    ``default_activation``, whatever the muscle class keeps it as), NaN where it has none."""
+    try:  # the state variable: getActivation would realise the muscle's dynamics first
+        a = float(muscle.getStateVariableValue(state, "activation"))
+    except RuntimeError:
+        return math.nan
+    return a if math.isfinite(a) else math.nan
 
 
 def _floor_activation(used: np.ndarray) -> float:

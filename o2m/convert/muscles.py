@@ -127,6 +127,7 @@ class MuscleParams:
     start: dict[str, float] = field(default_factory=dict, repr=False)
     velocity_rms_pct: float = math.nan
     min_activation: float = 0.0
+    default_activation: float = math.nan
     lengths: np.ndarray | None = field(default=None, repr=False)
     opensim_active: np.ndarray | None = field(default=None, repr=False)
     opensim_passive: np.ndarray | None = field(default=None, repr=False)
@@ -345,7 +346,8 @@ def _fit_one(t: MuscleSample) -> MuscleParams:
         err_passive_rms_pct=math.nan, notes=list(t.notes), cost=cost, start_cost=start_cost,
         start={"range0": float(x0[0]), "range1": float(x0[0] + x0[1]), "lmin": float(x0[2]),
                "lmax": float(x0[3]), "fpmax": float(x0[4])},
-        velocity_rms_pct=vel_rms, min_activation=t.min_activation, lengths=t.lengths,
+        velocity_rms_pct=vel_rms, min_activation=t.min_activation, default_activation=t.default_activation,
+        lengths=t.lengths,
         opensim_active=t.active, opensim_passive=t.passive,
     )
     _errors(p, t)

@@ -41,12 +41,15 @@ class JointRecord:
 
 @dataclass
 class BuildResult:
-    """The MuJoCo spec being built, with the records of its joints, approximations and notes."""
+    """The MuJoCo spec being built, with the records of its joints, approximations and notes, and
+    the activation each muscle actuator starts from in OpenSim's default state (name -> activation;
+    the ``default-pose`` keyframe's ``act``)."""
 
     spec: mujoco.MjSpec
     joints: list[JointRecord] = field(default_factory=list)
     approximations: list[Approximation] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    activations: dict[str, float] = field(default_factory=dict)
 
 
 def unique_name(name: str, taken: set[str]) -> str:

@@ -75,7 +75,7 @@ class _OpenSimPaths:
         self.states = [state0]
         rng = np.random.default_rng(seed)
         cs = self.model.getCoordinateSet()
-        free = [cs.get(i) for i in range(cs.getSize()) if not cs.get(i).getLocked(state0)
+        free = [cs.get(i) for i in range(cs.getSize()) if not runtime.is_held(cs.get(i), state0)
                 and not cs.get(i).isDependent(state0)]
         couplers = coupler_chain(self.model, state0)
         for _ in range(n_poses):

@@ -61,8 +61,8 @@ class ModelPair:
         cs = self.os_model.getCoordinateSet()
         self.coords = [cs.get(i) for i in range(cs.getSize())]
         st = self.init_state
-        self.locked = [self.name(c) for c in self.coords if c.getLocked(st)]
-        self.dependent = [self.name(c) for c in self.coords if not c.getLocked(st) and c.isDependent(st)]
+        self.locked = [self.name(c) for c in self.coords if runtime.is_held(c, st)]
+        self.dependent = [self.name(c) for c in self.coords if not runtime.is_held(c, st) and c.isDependent(st)]
         skip = set(self.locked) | set(self.dependent)
         self.indep = [c for c in self.coords if self.name(c) not in skip]
         self.indep_names = [self.name(c) for c in self.indep]

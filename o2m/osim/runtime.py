@@ -21,7 +21,8 @@ from typing import Any
 
 from o2m.errors import ModelFileError
 
-__all__ = ["TRANSLATIONAL", "geometry_path", "load_model", "opensim", "opensim_log", "path_force", "sample_bounds"]
+__all__ = ["TRANSLATIONAL", "geometry_path", "is_held", "load_model", "opensim", "opensim_log", "path_force",
+           "sample_bounds"]
 
 TRANSLATIONAL = 2
 """``opensim.Coordinate.Translational``, the motion type of a coordinate in metres."""
@@ -120,6 +121,12 @@ def sample_bounds(coord: Any) -> tuple[float, float]:
     lo = lo if math.isfinite(lo) else -default
     hi = hi if math.isfinite(hi) else default
     return (lo, hi) if lo <= hi else (hi, lo)
+
+
+def is_held(coord: Any, state: Any) -> bool:
+    """Whether OpenSim holds coordinate ``coord`` in ``state`` whatever value is set: locked, or
+    prescribed (a function of time, which overrides ``setValue``)."""
+    return bool(coord.getLocked(state) or coord.isPrescribed(state))
 
 
 def path_force(force: Any) -> Any | None:

@@ -17,7 +17,7 @@ from lxml import etree
 from o2m.errors import UnsupportedElementError
 from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.function_reader import parse_function
-from o2m.osim.functions import Function
+from o2m.osim.functions import Constant, Function
 from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, loop_welds, orient_joints
 from o2m.osim.kinds import BODY_CONSTRAINTS, PATH_TYPES, opensim_typenames, set_of_type
 from o2m.osim.names import CoordinateNames
@@ -108,7 +108,11 @@ class Body:
 
 @dataclass
 class Coordinate:
-    """A generalized coordinate: radians or metres, with OpenSim's range and flags."""
+    """A generalized coordinate: radians or metres, with OpenSim's range and flags.
+
+    A prescribed coordinate (``prescribed_function``, a function of time in seconds) starts at its
+    function's value at time 0 (``default``); a constant one is ``locked`` there, where OpenSim
+    holds it."""
 
     name: str
     joint: str
@@ -118,6 +122,7 @@ class Coordinate:
     locked: bool
     prescribed: bool
     element: etree._Element
+    prescribed_function: Function | None = None
 
 
 @dataclass
@@ -374,12 +379,17 @@ class SkeletonReader:
         if lo > hi:
             raise self.doc.error(el, f"has range [{lo}, {hi}] with minimum above maximum")
         default = float(_floats(el.find("default_value"), 1, self.doc, "default_value", (0.0,))[0])
+        locked = _bool(el.find("locked"))
+        holder = el.find("prescribed_function")
+        function = None
+        if _bool(el.find("prescribed")) and holder is not None and len(holder) > 0:
+            function = self.function_of(holder)
+            default = float(function(0.0))  # OpenSim's value at time 0, whatever default_value says
+            locked = locked or isinstance(function, Constant)
         return Coordinate(
             name=el.get("name"), joint=joint, default=default, range=(float(lo), float(hi)),
-            clamped=_bool(el.find("clamped"), False), locked=_bool(el.find("locked")),
-            prescribed=_bool(el.find("prescribed")) and el.find("prescribed_function") is not None
-            and len(el.find("prescribed_function")) > 0,
-            element=el,
+            clamped=_bool(el.find("clamped"), False), locked=locked, prescribed=function is not None,
+            element=el, prescribed_function=function,
         )
 
     def function_of(self, holder: etree._Element, default: Function | None = None) -> Function:

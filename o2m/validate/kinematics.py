@@ -312,9 +312,9 @@ def compare_kinematics(
     coords = [coord_set.get(i) for i in range(coord_set.getSize())]
     mj_names = opensim_coordinate_names(os_model)
     all_names = [mj_names[c.getAbsolutePathString()] for c in coords]
-    locked = [n for n, c in zip(all_names, coords, strict=True) if c.getLocked(init_state)]
+    locked = [n for n, c in zip(all_names, coords, strict=True) if runtime.is_held(c, init_state)]
     dependent = [n for n, c in zip(all_names, coords, strict=True)
-                 if not c.getLocked(init_state) and c.isDependent(init_state)]
+                 if not runtime.is_held(c, init_state) and c.isDependent(init_state)]
     not_sampled = set(locked) | set(dependent)
     indep = [c for n, c in zip(all_names, coords, strict=True) if n not in not_sampled]
     indep_names = [n for n in all_names if n not in not_sampled]

@@ -212,7 +212,7 @@ def opensim_frames(
         raise ViewerError(f"{osim_path}: no coordinate(s) named {', '.join(unknown)}")
     given = [coords[n] for n in coordinate_names]
     if assemble is None:
-        assemble = any(c.isDependent(state) and not c.getLocked(state) and n not in coordinate_names
+        assemble = any(c.isDependent(state) and not runtime.is_held(c, state) and n not in coordinate_names
                        for n, c in coords.items())
 
     os_bodies = {b.getName(): b for b in os_model.getBodyList()}  # the BodySet's and any in <components>

@@ -33,3 +33,21 @@ def test_no_limit_leaves_the_library_own(monkeypatch, tmp_path):
 def test_a_blas_limit_below_one_is_refused(bad):
     with pytest.raises(ValueError, match="blas_threads"):
         ConvertOptions(blas_threads=bad)
+
+
+def test_the_default_pose_keyframe_starts_each_muscle_at_opensims_default_activation(tmp_path):
+    """Tug_of_War's two Thelen muscles start at activations 1 and 0.05 in OpenSim's default state
+    (their default_activation); the 'default-pose' keyframe's act has the same, and the report says so."""
+    import mujoco
+    import numpy as np
+
+    from o2m.convert import convert
+    from tests.helpers import model_file
+
+    osim = model_file("opensim-models/Models/Tug_of_War/Tug_of_War.osim")
+    out = convert(osim, tmp_path, ConvertOptions(quick=True))
+    m = mujoco.MjModel.from_xml_path(str(out.xml))
+    act = m.key("default-pose").act
+    starts = {m.actuator(a).name: act[m.actuator_actadr[a]] for a in range(m.nu) if m.actuator_actadr[a] >= 0}
+    np.testing.assert_allclose([starts["muscle1"], starts["muscle2"]], [1.0, 0.05])
+    assert any("keyframe's act" in n for n in out.report.notes)
