@@ -66,6 +66,12 @@ SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
 MIN_SCALE = 0.004
 #: A side site is kept at least this many radii from its geom's centre (axis, for a cylinder).
 MIN_SIDE_DISTANCE = 1.25
+#: A tendon whose converted geoms are this near OpenSim (objective, mm², on the fitting and the
+#: check poses: 0.01 mm RMS, the scale of OpenSim's own wrap iterations and finite-difference
+#: moment arms) is not fitted: an improvement there is noise, and moving a geom for it can cost
+#: poses no sample covers (an ellipsoid of three equal radii, an exact sphere, moved 30 % of its
+#: radius for 1 micrometre put a head-neck model's eye muscle 5.6 % off at a range corner).
+EXACT_OBJECTIVE = 1e-4
 
 
 @dataclass
@@ -94,6 +100,8 @@ class PathFit:
     variant: str = ""
     dropped: list[str] = field(default_factory=list)
     variants: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: the start was within :data:`EXACT_OBJECTIVE` of OpenSim: not fitted
+    exact: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -309,14 +317,15 @@ def _fit_one(task: _Task) -> PathFit:
     fit, check = slice(0, task.n_fit), slice(task.n_fit, len(task.qpos))
     x0 = np.zeros(ev.n_params)
     f0 = ev.objective(x0, fit)
+    exact = f0 <= EXACT_OBJECTIVE and ev.objective(x0, check) <= EXACT_OBJECTIVE
     best_x, best_f = x0, f0
-    start = ev.contact_start()
+    start = None if exact else ev.contact_start()
     if start is not None:
         f_start = ev.objective(start, fit)
         if f_start < best_f:
             best_x, best_f = start, f_start
     x_start = best_x
-    for start in range(task.starts if ev.n_params and task.evals > 0 else 0):
+    for start in range(task.starts if ev.n_params and task.evals > 0 and not exact else 0):
         # each start from the same point with its own seed: the best of them kept (one seed alone
         # left MoBL-ARMS's SUP at 32 % or 59 %)
         es = cma.CMAEvolutionStrategy(x_start, 0.3, {"seed": int(task.seed) + 1 + start, "maxfevals": int(task.evals),
@@ -342,7 +351,7 @@ def _fit_one(task: _Task) -> PathFit:
     values.update({s: {"pos": p.tolist()} for s, p in zip(task.vias, ev.via_positions(best_x), strict=True)})
     return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
                    before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values,
-                   task.variant, list(task.dropped) + unneeded)
+                   task.variant, list(task.dropped) + unneeded, exact=exact)
 
 
 # --------------------------------------------------------------------------------------------
@@ -463,7 +472,8 @@ def format_fits(fits: Sequence[PathFit]) -> list[str]:
         lines.append(f"  {f.tendon:16s} {'+'.join(sorted(set(f.kinds))):34s} length rms {b['len_rms_mm']:.3g} -> "
                      f"{a['len_rms_mm']:.3g} mm (max {b['len_max_pct']:.3g} -> {a['len_max_pct']:.3g} %), moment arm "
                      f"rms {b['ma_rms_mm']:.3g} -> {a['ma_rms_mm']:.3g} mm"
-                     + ("" if f.accepted else " (not better: start kept)") + f", {f.seconds:.1f} s")
+                     + ("" if f.accepted else " (within OpenSim's noise: not fitted)" if f.exact
+                        else " (not better: start kept)") + f", {f.seconds:.1f} s")
         if f.variants:
             tried = "; ".join(f"{label} {v['objective']:.3g} mm², {v['len_max_pct']:.3g} %"
                               for label, v in f.variants.items())

@@ -82,3 +82,19 @@ def test_a_dropped_side_site_leaves_the_geom_in_the_path():
     assert m.nsite == 2 and m.ngeom == 1
     w = m.tendon_adr[0] + 1
     assert int(m.wrap_type[w]) == int(mujoco.mjtWrap.mjWRAP_SPHERE) and m.wrap_prm[w] == -1
+
+
+def test_a_tendon_already_at_opensims_lengths_is_not_fitted():
+    """Targets the converted geoms meet (OpenSim's noise at most): CMA-ES is not run and the
+    geoms keep their places; a start 2 mm off is fitted."""
+    from dataclasses import replace
+
+    from o2m.convert.wrapfit import _fit_one
+
+    length, arm = _lengths("0 0 0.1")
+    exact = replace(_evaluator("0 0 0.1", targets=(length + 1e-6, arm)).t, evals=200, n_fit=5)
+    fit = _fit_one(exact)
+    assert fit.exact and not fit.accepted and fit.evaluations < 10
+    assert fit.values["ball"]["pos"] == [0.0, 0.0, 0.0]
+    off = replace(_evaluator("0 0 0.1", targets=(length + 2e-3, arm)).t, evals=200, n_fit=5)
+    assert not _fit_one(off).exact
