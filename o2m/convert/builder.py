@@ -130,6 +130,7 @@ class MjcfBuilder:
         self.coord_joint: dict[str, tuple[Joint, TransformAxis]] = choose_coordinate_axes(skel, self.drivers)
         self.bodies: dict[str, mujoco.MjsBody] = {"ground": self.spec.worldbody}
         self._order: list[Joint] | None = None
+        self._chain_cache: dict[tuple[str, ...], list[Joint]] = {}
         #: Each body's frame in OpenSim ground at the reference pose.
         self.ground_frames: dict[str, Transform] = {"ground": Transform()}
         #: Exact attribute values by (MJCF tag, name): MuJoCo's XML writer prints 6 digits.
@@ -155,14 +156,29 @@ class MjcfBuilder:
         base.update(changes or {})
         return {name: float(np.asarray(d.fn(np.array([base[d.base]])))[0]) for name, d in self.drivers.items()}
 
-    def ground_frames_at(self, values: dict[str, float]) -> dict[str, Transform]:
-        """Each body's frame in OpenSim ground when the coordinates have ``values`` (all of them)."""
+    def ground_frames_at(self, values: dict[str, float], bodies: tuple[str, ...] | None = None
+                         ) -> dict[str, Transform]:
+        """Each body's frame in OpenSim ground when the coordinates have ``values`` (all of them);
+        with ``bodies``, only theirs and their ancestors' (a large tree's two ends cost a chain each)."""
         frames = {"ground": Transform()}
         if self._order is None:
             self._order = self._ordered_joints()
-        for joint in self._order:
+        for joint in self._order if bodies is None else self._chains(bodies):
             frames[joint.child] = frames[joint.parent] @ joint.transform(values)
         return frames
+
+    def _chains(self, bodies: tuple[str, ...]) -> list[Joint]:
+        """The joints from ground to each of ``bodies``, parents first (cached)."""
+        key = tuple(sorted(set(bodies)))
+        if key not in self._chain_cache:
+            parent = {j.child: j.parent for j in self._order}
+            needed: set[str] = set()
+            for b in key:
+                while b != "ground" and b not in needed:
+                    needed.add(b)
+                    b = parent[b]
+            self._chain_cache[key] = [j for j in self._order if j.child in needed]
+        return self._chain_cache[key]
 
     def is_fixed(self, ax: TransformAxis) -> bool:
         """True when the axis does not move: no coordinate, or it depends on a locked coordinate only."""

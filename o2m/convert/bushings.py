@@ -266,7 +266,7 @@ def _minimax_line(design: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, f
 
 def _deflection(builder: MjcfBuilder, changes: dict[str, float], ends) -> np.ndarray:
     """(6,): frame 2's X-Y-Z body-fixed angles (rad) and origin (m) in frame 1 at a pose."""
-    frames = builder.ground_frames_at(builder.coordinate_values(changes))
+    frames = builder.ground_frames_at(builder.coordinate_values(changes), bodies=(ends[0][0], ends[1][0]))
     f1 = frames[ends[0][0]] @ ends[0][1]
     f2 = frames[ends[1][0]] @ ends[1][1]
     angles = Rotation.from_matrix(f1.rot.T @ f2.rot).as_euler("XYZ")
