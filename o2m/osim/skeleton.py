@@ -85,6 +85,10 @@ def _identity_function() -> Function:
     return parse_function(el)
 
 
+#: The model's sets of components, in the order they are read.
+MODEL_SETS = ("BodySet", "JointSet", "ConstraintSet", "ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet",
+              "ComponentSet")
+
 @dataclass
 class Geometry:
     """A geometry element attached to a frame; ``frame`` is that frame's transform in ``body``."""
@@ -362,6 +366,23 @@ class SkeletonReader:
         if el.tag not in opensim_typenames():
             raise self.doc.error(el, "is not an element OpenSim 4.6 knows (misspelt, or from a plugin)")
 
+    def check_all_known(self) -> None:
+        """One error naming the first element of any model set that OpenSim 4.6 does not know, and
+        every unknown class with its count, so that a model using plugins is refused once, not
+        once per class."""
+        known = opensim_typenames()
+        listed = [el for tag in MODEL_SETS for el in self.set_objects(tag)]
+        listed += [c for h in self.model.findall("components") for c in h if isinstance(c.tag, str)]
+        unknown = list({id(el): el for el in listed if el.tag not in known}.values())
+        if unknown:
+            unknown.sort(key=lambda el: self.doc.line_of(el) or 0)
+            counts: dict[str, int] = {}
+            for el in unknown:
+                counts[el.tag] = counts.get(el.tag, 0) + 1
+            listed = ", ".join(f"{tag} ({n})" for tag, n in counts.items())
+            raise self.doc.error(unknown[0], f"is not an element OpenSim 4.6 knows (misspelt, or from a plugin); "
+                                             f"unknown classes in this model: {listed}")
+
     def body(self, el: etree._Element) -> Body:
         mass = float(_floats(el.find("mass"), 1, self.doc, "mass", (0.0,))[0])
         if mass < 0:
@@ -503,6 +524,7 @@ class SkeletonReader:
 
     def read(self) -> Skeleton:
         doc = self.doc
+        self.check_all_known()
         skipped: list[Skipped] = []
         bodies: dict[str, Body] = {}
         for el in self.set_objects("BodySet"):
@@ -568,7 +590,7 @@ class SkeletonReader:
             for g in holder:
                 if isinstance(g.tag, str):
                     geometry.append(Geometry(g, body, x, fname))
-        for set_tag in ("ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet", "ComponentSet"):
+        for set_tag in MODEL_SETS[3:]:
             for el in self.set_objects(set_tag):
                 self.check_known(el)
                 if set_tag == "ForceSet" and el.tag in PATH_TYPES:

@@ -256,7 +256,19 @@ def _path_wrap_case(tmp_path: Path, prop: str, value: str) -> Case:
     return Case(text, UnsupportedElementError, [tag, f"line {line_of(text, tag)}", prop])
 
 
+def _plugin_classes(base: str, tmp_path: Path) -> Case:
+    """Two classes of a plugin (a body and a joint): one error names the first by line and both."""
+    text = base
+    for set_tag, element in (("JointSet", '<FooJoint name="x" />'), ("BodySet", '<BarBody name="y" />')):
+        marker = re.search(rf"<{set_tag} name=\"[^\"]*\">\s*<objects>\s*", text)
+        assert marker is not None, set_tag
+        text = text[:marker.end()] + element + "\n" + text[marker.end():]
+    return Case(text, UnsupportedElementError, ['<BarBody name="y">', f"line {line_of(text, '<BarBody')}",
+                                                "unknown classes in this model: BarBody (1), FooJoint (1)"])
+
+
 MORE_CASES = {
+    "plugin-classes": _plugin_classes,
     "mesh-one-color": lambda base, tmp: _mesh_case(tmp, "<Appearance><color>0.5</color></Appearance>", "color"),
     "mesh-scale-text": lambda base, tmp: _mesh_case(tmp, "<scale_factors>a b c</scale_factors>", "scale_factors"),
     "muscle-negative-force": lambda base, tmp: _muscle_case(tmp, "max_isometric_force", "-1000"),
