@@ -8,8 +8,8 @@ from functools import cache
 from o2m.osim import runtime
 
 __all__ = [
-    "BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MUSCLE_TYPES", "PATH_TYPES", "default_coordinates",
-    "opensim_typenames", "renamed_type", "set_of_type",
+    "BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MODEL_SETS", "MUSCLE_TYPES", "PATH_TYPES", "SKIP_REASONS",
+    "default_coordinates", "opensim_typenames", "refuse_unknown", "renamed_type", "set_of_type",
 ]
 
 #: Constraints between two bodies that become MuJoCo equalities (:mod:`o2m.convert.constraints`).
@@ -80,3 +80,32 @@ def default_coordinates(tag: str) -> tuple[str, ...]:
     opensim = runtime.opensim()
     joint = opensim.Joint.safeDownCast(opensim.OpenSimObject.newInstanceOfType(tag))
     return tuple(joint.get_coordinates(i).getName() for i in range(joint.numCoordinates()))
+
+
+#: A model's sets of components, in the order o2m reads them.
+MODEL_SETS = ("BodySet", "JointSet", "ConstraintSet", "ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet",
+              "ComponentSet")
+#: Why an element of each of the last sets is skipped when nothing converts it.
+SKIP_REASONS = {
+    "ForceSet": "this force is not converted yet",
+    "ContactGeometrySet": "contact geometry is not converted",
+    "ControllerSet": "controllers are not part of a MuJoCo model",
+    "ProbeSet": "probes are analysis tools, not part of a MuJoCo model",
+    "ComponentSet": "generic components are not converted",
+}
+
+def refuse_unknown(doc, elements: list) -> None:
+    """Raise one error (``doc.error``) naming the first of ``elements`` (lxml elements of
+    ``doc``) by line whose tag OpenSim 4.6 does not know, and every unknown class with its count;
+    nothing when all are known."""
+    known = opensim_typenames()
+    unknown = list({id(el): el for el in elements if el.tag not in known}.values())
+    if not unknown:
+        return
+    unknown.sort(key=lambda el: doc.line_of(el) or 0)
+    counts: dict[str, int] = {}
+    for el in unknown:
+        counts[el.tag] = counts.get(el.tag, 0) + 1
+    listed = ", ".join(f"{tag} ({n})" for tag, n in counts.items())
+    raise doc.error(unknown[0], f"is not an element OpenSim 4.6 knows (misspelt, or from a plugin); unknown "
+                                f"classes in this model: {listed}")

@@ -19,7 +19,7 @@ from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
 from o2m.osim.function_reader import parse_function
 from o2m.osim.functions import Constant, Function
 from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, loop_welds, orient_joints
-from o2m.osim.kinds import BODY_CONSTRAINTS, PATH_TYPES, opensim_typenames, set_of_type
+from o2m.osim.kinds import BODY_CONSTRAINTS, MODEL_SETS, PATH_TYPES, SKIP_REASONS, refuse_unknown, set_of_type
 from o2m.osim.names import CoordinateNames
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
@@ -85,9 +85,6 @@ def _identity_function() -> Function:
     return parse_function(el)
 
 
-#: The model's sets of components, in the order they are read.
-MODEL_SETS = ("BodySet", "JointSet", "ConstraintSet", "ForceSet", "ContactGeometrySet", "ControllerSet", "ProbeSet",
-              "ComponentSet")
 
 @dataclass
 class Geometry:
@@ -363,25 +360,14 @@ class SkeletonReader:
         return objs
 
     def check_known(self, el: etree._Element) -> None:
-        if el.tag not in opensim_typenames():
-            raise self.doc.error(el, "is not an element OpenSim 4.6 knows (misspelt, or from a plugin)")
+        refuse_unknown(self.doc, [el])
 
     def check_all_known(self) -> None:
-        """One error naming the first element of any model set that OpenSim 4.6 does not know, and
-        every unknown class with its count, so that a model using plugins is refused once, not
-        once per class."""
-        known = opensim_typenames()
+        """One error for every element of the model's sets (and ``<components>``) OpenSim 4.6
+        does not know: a model using plugins is refused once, not once per class."""
         listed = [el for tag in MODEL_SETS for el in self.set_objects(tag)]
-        listed += [c for h in self.model.findall("components") for c in h if isinstance(c.tag, str)]
-        unknown = list({id(el): el for el in listed if el.tag not in known}.values())
-        if unknown:
-            unknown.sort(key=lambda el: self.doc.line_of(el) or 0)
-            counts: dict[str, int] = {}
-            for el in unknown:
-                counts[el.tag] = counts.get(el.tag, 0) + 1
-            listed = ", ".join(f"{tag} ({n})" for tag, n in counts.items())
-            raise self.doc.error(unknown[0], f"is not an element OpenSim 4.6 knows (misspelt, or from a plugin); "
-                                             f"unknown classes in this model: {listed}")
+        refuse_unknown(self.doc, listed + [c for h in self.model.findall("components") for c in h
+                                           if isinstance(c.tag, str)])
 
     def body(self, el: etree._Element) -> Body:
         mass = float(_floats(el.find("mass"), 1, self.doc, "mass", (0.0,))[0])
@@ -595,7 +581,7 @@ class SkeletonReader:
                 self.check_known(el)
                 if set_tag == "ForceSet" and el.tag in PATH_TYPES:
                     continue  # paths are read by o2m.osim.paths (other path forces are skipped, listed)
-                reason = _skip_reason(set_tag)
+                reason = SKIP_REASONS[set_tag]
                 if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
                     reason += " (its path too: no tendon, no force)"
                 skipped.append(Skipped(el.tag, el.get("name", ""), reason))
@@ -603,16 +589,6 @@ class SkeletonReader:
         gravity = _floats(grav, 3, doc, "gravity", (0.0, -9.80665, 0.0))
         return Skeleton(self.model.get("name", doc.path.stem), gravity, bodies, joints, coords, couplers,
                         markers, geometry, skipped, doc, point_on_lines, body_constraints, self.names)
-
-
-def _skip_reason(set_tag: str) -> str:
-    return {
-        "ForceSet": "this force is not converted yet",
-        "ContactGeometrySet": "contact geometry is not converted",
-        "ControllerSet": "controllers are not part of a MuJoCo model",
-        "ProbeSet": "probes are analysis tools, not part of a MuJoCo model",
-        "ComponentSet": "generic components are not converted",
-    }[set_tag]
 
 
 def read_skeleton(doc: OsimDocument) -> Skeleton:
