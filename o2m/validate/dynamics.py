@@ -119,6 +119,7 @@ class DynamicsReport:
             lists them (``trajectory`` is the set's index).
         path_jumps_at_opensim_failures: the same jumps where OpenSim's own path winds or loops
             round a wrap (no reference there), with that evidence.
+        driven_muscles: the muscles excited in both simulators (none: the runs are passive).
     """
 
     name: str
@@ -136,6 +137,7 @@ class DynamicsReport:
     ranges: np.ndarray | None = None
     path_flips: list[dict] = field(default_factory=list)
     path_jumps_at_opensim_failures: list[dict] = field(default_factory=list)
+    driven_muscles: list[str] | None = None
 
     @property
     def error(self) -> np.ndarray:
@@ -193,6 +195,9 @@ class DynamicsReport:
             rot = self.error[s][:, self.rotational]
             err = f", mean abs {np.nanmean(rot):.4f} rad" if np.isfinite(rot).any() else ""
             lines.append(f"  {self.labels[s]}: OpenSim {self.status[s]} to t={t_end:.3g} s{secs}{err}{why}{note}")
+        if self.driven_muscles is not None and not self.driven_muscles:
+            lines.append("  no muscle is driven: every run is passive (gravity, springs, contact), other actuators "
+                         "at zero control")
         if self.unmatched_muscles:
             lines.append(f"  not driven in MuJoCo (no actuator of that name): {', '.join(self.unmatched_muscles)}")
         w = max([len("coordinate")] + [len(c) for c in self.coordinates])
@@ -354,7 +359,7 @@ def compare_dynamics(osim_path: str | os.PathLike[str], mjcf_path: str | os.Path
     return DynamicsReport(Path(osim_path).stem, exc.times, names, rotational, ref, mj, list(exc.labels),
                           [r.status for r in runs], [r.reason for r in runs], traj.diverged.copy(),
                           [m for m in outline.muscles if m not in actuators], [r.wall_time for r in runs],
-                          np.array([outline.ranges[n] for n in names], float), flips, at_failures)
+                          np.array([outline.ranges[n] for n in names], float), flips, at_failures, driven)
 
 
 def _opensim_columns(run: OpenSimRun, names: Sequence[str]) -> np.ndarray:

@@ -136,3 +136,16 @@ def test_report_arithmetic_on_known_trajectories():
                       {"tendon": "t2", "trajectory": 1, "mujoco": 0.03},
                       {"tendon": "t1", "trajectory": 1, "mujoco": 0.004}]
     assert "do not: t2 (1 set(s), up to 30.0 mm), t1 (2 set(s), up to 4.0 mm)" in rep.summary()
+
+
+def test_a_model_without_muscles_is_said_to_run_passive(tmp_path):
+    """The corpus's double pendulum (two CoordinateActuators, no muscle): both simulators fall
+    under gravity alike, and the summary says no muscle is driven."""
+    from o2m.convert import ConvertOptions, convert
+    from tests.helpers import model_file
+
+    osim = model_file("opensim-models/Models/DoublePendulum/double_pendulum.osim")
+    xml = convert(osim, tmp_path, ConvertOptions(quick=True)).xml
+    rep = compare_dynamics(osim, xml, n_sets=1, duration=0.5, max_workers=1, progress=False)
+    assert rep.driven_muscles == [] and "no muscle is driven" in rep.summary()
+    assert rep.mean_rotational_error() < 0.01, rep.summary()
