@@ -21,12 +21,17 @@ import numpy as np
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE, Carriers
 from o2m.convert.conditional import conditional_geom, conditional_roles
+from o2m.convert.force_context import _applies_force
 from o2m.convert.pathforces import PathForces
 from o2m.convert.pathpoints import PathContext
 from o2m.convert.wraps import PathGeom, WrapGeoms
 from o2m.osim.kinds import LIGAMENT_TYPES
 from o2m.osim.paths import MUSCLE_TYPES, Path, WrapObject
 from o2m.transforms import Transform
+
+#: MuJoCo actuator group of the muscles OpenSim's model disables (``appliesForce`` false): the
+#: model disables the group (``actuatorgroupdisable``), so they apply no force until enabled.
+DISABLED_MUSCLE_GROUP = 5
 
 
 class TendonBuilder:
@@ -142,6 +147,12 @@ class TendonBuilder:
             act = self.spec.add_actuator(name=path.owner, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=path.owner)
             fmax = float(path.element.findtext("max_isometric_force") or 1000.0)
             act.set_to_muscle(timeconst=[0.01, 0.04], tausmooth=0.0, force=fmax)
+            if not _applies_force(path.element):
+                act.group = DISABLED_MUSCLE_GROUP
+                self.spec.option.disableactuator |= 1 << DISABLED_MUSCLE_GROUP
+                self.b.result.notes.append(
+                    f"{path.owner_type} '{path.owner}' is disabled in OpenSim (appliesForce false): its actuator is "
+                    f"in group {DISABLED_MUSCLE_GROUP}, which the model disables (option actuatorgroupdisable)")
         elif path.owner_type not in LIGAMENT_TYPES:  # a ligament's spring is added by o2m.forces
             self.b.result.notes.append(f"{path.owner_type} '{path.owner}': tendon only (no actuator yet)")
 

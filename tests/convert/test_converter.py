@@ -51,3 +51,28 @@ def test_the_default_pose_keyframe_starts_each_muscle_at_opensims_default_activa
     starts = {m.actuator(a).name: act[m.actuator_actadr[a]] for a in range(m.nu) if m.actuator_actadr[a] >= 0}
     np.testing.assert_allclose([starts["muscle1"], starts["muscle2"]], [1.0, 0.05])
     assert any("keyframe's act" in n for n in out.report.notes)
+
+
+def test_a_muscle_opensim_disables_applies_no_force(tmp_path):
+    """Tug_of_War's muscle1 with appliesForce false: its actuator is in the group the model
+    disables, so at full activation it pulls with nothing, as in OpenSim; muscle2 still pulls."""
+    import mujoco
+
+    from o2m.convert import convert
+    from o2m.convert.tendons import DISABLED_MUSCLE_GROUP
+    from tests.helpers import model_file
+
+    text = model_file("opensim-models/Models/Tug_of_War/Tug_of_War.osim").read_text()
+    start = text.index('<Thelen2003Muscle name="muscle1">') + len('<Thelen2003Muscle name="muscle1">')
+    osim = tmp_path / "tug.osim"
+    osim.write_text(text[:start] + "<appliesForce>false</appliesForce>" + text[start:])
+    out = convert(osim, tmp_path / "out", ConvertOptions(quick=True))
+    m = mujoco.MjModel.from_xml_path(str(out.xml))
+    assert m.actuator("muscle1").group == DISABLED_MUSCLE_GROUP and m.opt.disableactuator & (1 << DISABLED_MUSCLE_GROUP)
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("default-pose").id)
+    d.act[:] = 1.0
+    mujoco.mj_forward(m, d)
+    assert d.actuator_force[m.actuator("muscle1").id] == 0.0
+    assert d.actuator_force[m.actuator("muscle2").id] < -1.0
+    assert any("muscle1" in n and "appliesForce false" in n for n in out.report.notes)
