@@ -54,8 +54,9 @@ def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: 
 
 
 def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
-             held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
-             n_contact: int = 0, designed: dict[str, list] | None = None) -> tuple[Any, dict[str, dict[str, Any]]]:
+                held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
+                n_contact: int = 0, designed: dict[str, list] | None = None
+                ) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
     (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
     ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
