@@ -41,6 +41,7 @@ def cmd_convert(a: argparse.Namespace) -> int:
     try:
         options = ConvertOptions(path_forces=a.path_forces, length_vias=not a.no_length_vias, quick=quick,
                                  workers=a.workers, bushing_tolerance=a.bushing_tolerance,
+                                 clamped_limits=a.clamped_limits,
                                  **({} if a.carrier_tolerance is None else {"carrier_tolerance": a.carrier_tolerance}))
     except ValueError as exc:
         raise SystemExit(f"o2m convert: {exc}") from None
@@ -239,6 +240,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="convert a non-linear BushingForce whose best linear fit deflects at most this much "
                         "wrong to fixed tendons (default: linear ones only; the others become a ghost body "
                         "welded to the bushing's second frame); the report records each error")
+    c.add_argument("--clamped-limits", action="store_true",
+                   help="give clamped coordinates MuJoCo hard limits at their range (default: unlimited, as in "
+                        "OpenSim's forward dynamics, which enforces a clamped range only when setting values)")
     c.add_argument("--no-moment-arm-plots", dest="moment_arm_plots", action="store_false",
                    help="skip the moment-arm sweeps against OpenSim (<stem>.moment_arms.pdf)")
     c.set_defaults(func=cmd_convert)

@@ -51,6 +51,7 @@ from o2m.convert.coordinates import (
     coordinate_drivers,
     fit_range,
     is_fixed,
+    joint_limited,
     relative,
 )
 from o2m.convert.coupling_plan import (
@@ -105,7 +106,8 @@ def _rest(fn, q: np.ndarray) -> np.ndarray:
 class MjcfBuilder:
     """Builds an ``MjSpec`` from a skeleton; :func:`o2m.convert.visuals.add_geometry` adds its geometry after."""
 
-    def __init__(self, skel: Skeleton, *, plan_couplings: bool = True, shortcuts: bool = True):
+    def __init__(self, skel: Skeleton, *, plan_couplings: bool = True, shortcuts: bool = True,
+                 clamped_limits: bool = False):
         #: Notes for the report on chains shortened (:func:`o2m.convert.shortcuts.shorten_chains`).
         self.shortcut_notes: list[str] = []
         if shortcuts:
@@ -114,6 +116,8 @@ class MjcfBuilder:
         self.skel = skel
         #: Whether skeleton couplings get extra joints (:meth:`_plan_couplings`); else plain quartics.
         self.plan_couplings = plan_couplings
+        #: Whether clamped coordinates get MuJoCo hard limits (:func:`~o2m.convert.coordinates.joint_limited`).
+        self.clamped_limits = clamped_limits
         #: Coordinate -> (its complement joint, the axis), for coordinates that reach their axes
         #: only through functions (:meth:`_add_complement`).
         self._complements: dict[str, tuple[str, TransformAxis]] = {}
@@ -451,12 +455,8 @@ class MjcfBuilder:
         self.exact[("joint", name)]["range"] = np.array(coord.range)
         mj = self.spec.joint(name)
         mj.range = list(coord.range)
-        clamped = coord.clamped and coord.range[1] - coord.range[0] < 1e3
-        if clamped and not coord.range[0] < coord.range[1]:  # MuJoCo's limits need two ends
-            clamped = False
-            self.result.notes.append(f"coordinate '{coord.name}' is clamped to a range of no width "
-                                     f"{list(coord.range)}: its MuJoCo joint is left unlimited (MuJoCo's "
-                                     f"limits need two ends)")
+        clamped, note = joint_limited(coord, self.clamped_limits)
+        self.result.notes.extend([note] if note else [])
         mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE if clamped else mujoco.mjtLimited.mjLIMITED_FALSE
         if self.drivers[coord.name].base != coord.name:
             self.couple(rec, self.drivers[coord.name], joint_ref, coord.element, high_order=True)

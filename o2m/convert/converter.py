@@ -26,6 +26,7 @@ from o2m.convert.builder import MjcfBuilder
 from o2m.convert.bushing_ghost import ghosts_posed
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.constraints import add_constraints
+from o2m.convert.coordinates import unenforced_clamps
 from o2m.convert.islands import disable_single_island
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.massless import check_massless
@@ -91,6 +92,9 @@ class ConvertOptions:
             coordinate moves (its chain's rotations cancel: MoBL-ARMS's scapphant) from that
             ancestor by slides of the coordinate (:mod:`o2m.convert.shortcuts`): the same poses
             within the skeleton couplings' target, fewer joints above its subtree.
+        clamped_limits: give clamped coordinates MuJoCo hard limits at their range. OpenSim
+            enforces a clamped range only when it sets or assembles values, not in forward
+            dynamics, so the default (False) leaves every joint unlimited, as OpenSim simulates.
         blas_threads: BLAS threads per process while converting (None: the library's own, one
             per core). The fits' matrices are small (a length via point's least squares solves a
             1083 x 15 SVD thousands of times), where threads only wait on each other: one SVD
@@ -107,6 +111,7 @@ class ConvertOptions:
     carrier_tolerance: float = CARRIER_AXIS_TOLERANCE
     bushing_tolerance: float | None = None
     chain_shortcuts: bool = True
+    clamped_limits: bool = False
     blas_threads: int | None = 1
 
     def __post_init__(self):
@@ -141,8 +146,10 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
     stem = name or osim.stem
     doc = load_document(osim)
     skel = read_skeleton(doc)
-    builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics, shortcuts=options.chain_shortcuts)
+    builder = MjcfBuilder(skel, plan_couplings=not options.plain_quartics, shortcuts=options.chain_shortcuts,
+                          clamped_limits=options.clamped_limits)
     result = builder.build()
+    result.notes += unenforced_clamps(skel, options.clamped_limits)
     result.notes += [f"coordinate '{c}' of joint '{j}' is MuJoCo joint '{n}' (another joint has a coordinate "
                      f"'{c}'; MuJoCo names are unique)" for j, c, n in skel.names.renamed()]
     add_constraints(builder)

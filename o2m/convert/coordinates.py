@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from o2m.osim.skeleton import Joint, Skeleton, TransformAxis
+from o2m.osim.skeleton import Coordinate, Joint, Skeleton, TransformAxis
 
 #: Range over which a coupling with an unbounded driving coordinate is fitted (rad or m).
 UNBOUNDED_FIT_RANGE = {"rotation": (-np.pi, np.pi), "translation": (-1.0, 1.0)}
@@ -151,3 +151,32 @@ def choose_coordinate_axes(skel: Skeleton, drivers: dict[str, Driver]) -> dict[s
                 j, ax = next(((j, ax) for j, ax in axes if ax.kind == "rotation"), axes[0])
                 chosen[name] = CoordinateAxis(j, ax, "complement")
     return chosen
+
+
+def joint_limited(coordinate: Coordinate, hard_limits: bool) -> tuple[bool, str | None]:
+    """Whether a coordinate's MuJoCo joint gets limits, and a note for the report where it cannot.
+
+    OpenSim enforces a clamped coordinate's range only when it sets or assembles values, never in
+    forward dynamics (a clamped slider under gravity falls through the end of its range), so the
+    faithful joint is unlimited; ``hard_limits`` gives clamped coordinates MuJoCo's hard limits.
+    A range of 1000 or wider is OpenSim's way of writing "no range" and stays unlimited.
+    """
+    lo, hi = coordinate.range
+    if not (hard_limits and coordinate.clamped and hi - lo < 1e3):
+        return False, None
+    if not lo < hi:  # MuJoCo's limits need two ends
+        return False, (f"coordinate '{coordinate.name}' is clamped to a range of no width {[lo, hi]}: its "
+                       f"MuJoCo joint is left unlimited (MuJoCo's limits need two ends)")
+    return True, None
+
+
+def unenforced_clamps(skel: Skeleton, hard_limits: bool) -> list[str]:
+    """The report's note naming the clamped coordinates whose MuJoCo joints stay unlimited (none
+    with ``hard_limits``): users who expect joint limits learn why there are none."""
+    names = [c.name for c in skel.coordinates.values()
+             if c.clamped and not c.locked and c.range[1] - c.range[0] < 1e3]
+    if hard_limits or not names:
+        return []
+    return [f"{len(names)} clamped coordinates ({', '.join(names)}) have unlimited MuJoCo joints: OpenSim "
+            f"enforces a clamped range only when it sets or assembles values, not in forward dynamics "
+            f"(ConvertOptions.clamped_limits / --clamped-limits gives them MuJoCo's hard limits)"]

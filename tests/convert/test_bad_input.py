@@ -387,11 +387,12 @@ FAST = {"fit_mechanics": False, "fit_wraps": False}
 @pytest.mark.parametrize("clamped", [False, True])
 def test_zero_width_range_converts(clamped, base, tmp_path):
     """A coordinate whose range has no width (knee in [0.1, 0.1]) converts, its joint the coordinate's;
-    clamped, its joint is unlimited (MuJoCo's limits need two ends; once a compile error), with a note."""
+    clamped and converted with ``clamped_limits``, its joint is unlimited (MuJoCo's limits need two
+    ends; once a compile error), with a note."""
     path = tmp_path / "still.osim"
     rng = "<range>0.1 0.1</range>" + ("<clamped>true</clamped>" if clamped else "")
     path.write_text(base.replace("<range>-2 0.5</range>", rng))
-    conv = convert(path, tmp_path / "out", convert_options(**FAST))
+    conv = convert(path, tmp_path / "out", convert_options(**FAST, clamped_limits=True))
     assert any(j.coordinate == "knee" and j.name == "knee" for j in conv.report.joints)
     assert any("'knee' is clamped to a range of no width" in n for n in conv.report.notes) == clamped
 

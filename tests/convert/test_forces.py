@@ -307,7 +307,9 @@ def test_synthetic_report(synthetic):
     assert [(s.element, s.name, s.reason) for s in rep.skipped] == [
         ("CoordinateActuator", "ca_off", "disabled in OpenSim (appliesForce false)")]
     q2 = m.joint("q2").id
-    assert m.jnt_limited[q2] and np.allclose(m.jnt_range[q2], [-1.0, 1.5]) and not m.jnt_limited[m.joint("q1").id]
+    # q2 clamped: its range kept, unlimited as in OpenSim's forward dynamics (the notes say so)
+    assert not m.jnt_limited[q2] and np.allclose(m.jnt_range[q2], [-1.0, 1.5]) and not m.jnt_limited[m.joint("q1").id]
+    assert any("(q2) have unlimited MuJoCo joints" in n for n in rep.notes)
     assert rep.counts["other forces"] == 3 + 1 + 1 + 3 + 3
     names = [m.actuator(i).name for i in range(m.nu)]
     assert names == ["mus", "ca_q1", "ta_local", "ta_ground", "ta_global", "pa_local", "pa_world", "pa_global"]

@@ -813,7 +813,8 @@ CLAMP_CASES = {
 
 @pytest.mark.parametrize("case", list(CLAMP_CASES))
 def test_clamped_and_range(case, tmp_path):
-    """MuJoCo jnt_limited / jnt_range follow OpenSim's clamped flag and range."""
+    """MuJoCo jnt_range is OpenSim's range; the joint is unlimited, as OpenSim's forward dynamics
+    leaves a clamped coordinate, unless ``clamped_limits`` asks for limits where OpenSim clamps."""
     c = CLAMP_CASES[case]
     jtype = "SliderJoint" if "slider" in case else "PinJoint"
     joints = [JointSpec("j1", jtype, "ground", "b1", OFFSETS[0], [c]),
@@ -826,7 +827,11 @@ def test_clamped_and_range(case, tmp_path):
     assert_exact(r)
     j = jid(r.mj, "q")
     np.testing.assert_allclose(r.mj.jnt_range[j], [oc.getRangeMin(), oc.getRangeMax()], rtol=0, atol=1e-12)
-    assert bool(r.mj.jnt_limited[j]) == bool(oc.get_clamped())
+    assert not r.mj.jnt_limited[j]
+    assert any("have unlimited MuJoCo joints" in n for n in r.conv.report.notes) == (
+        bool(oc.get_clamped()) and oc.getRangeMax() - oc.getRangeMin() < 1e3)
+    hard = mujoco.MjModel.from_xml_path(str(convert(path, tmp_path / "hard", convert_options(clamped_limits=True)).xml))
+    assert bool(hard.jnt_limited[jid(hard, "q")]) == bool(oc.get_clamped())
 
 
 def test_default_values(tmp_path):
