@@ -6,6 +6,9 @@
 * **PointToPointActuator**: a motor on a spatial tendon between its two points, ``gear =
   optimal_force``: OpenSim pushes the points apart along their line by a positive force, as a
   positive tendon force lengthens a MuJoCo tendon.
+* **PathActuator**: a motor on its path's tendon (built by :mod:`o2m.convert.tendons`), ``gear =
+  -optimal_force``: OpenSim's tension ``control · optimal_force`` pulls the path's points
+  together, as a negative MuJoCo tendon force does.
 * **TorqueActuator**: a site transmission with ``refsite``: the torque ``optimal_force ·
   axis`` on bodyA, its opposite on bodyB. Exact when the axis is fixed in bodyA
   (``torque_is_global`` false) or when one body is ground; a global axis between two moving
@@ -42,8 +45,8 @@ from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
 from o2m.transforms import OSIM_TO_MJ, Transform
 
-__all__ = ["convert_activation_coordinate_actuator", "convert_coordinate_actuator", "convert_point_actuator",
-           "convert_point_to_point_actuator", "convert_torque_actuator", "measure_drifts"]
+__all__ = ["convert_activation_coordinate_actuator", "convert_coordinate_actuator", "convert_path_actuator",
+           "convert_point_actuator", "convert_point_to_point_actuator", "convert_torque_actuator", "measure_drifts"]
 
 
 def _frame_by_name(ctx: _Context, el: etree._Element, prop: str) -> tuple[str, Transform]:
@@ -125,6 +128,16 @@ def convert_activation_coordinate_actuator(ctx: _Context, el: etree._Element) ->
         ctx.builder.result.activations[el.get("name")] = start
         ctx.builder.result.notes.append(f"{el.tag} '{el.get('name')}': OpenSim starts its activation at {start:g}; "
                                         "so does the 'default-pose' keyframe's act (mj_resetData starts it at 0)")
+
+
+def convert_path_actuator(ctx: _Context, el: etree._Element) -> None:
+    """PathActuator -> a motor on its path's tendon, gear = -optimal_force (a pull for control > 0)."""
+    name = el.get("name")
+    if name not in ctx.names["tendon"]:
+        ctx.out.skipped.append(Skipped(el.tag, name, "its path became no MuJoCo tendon"))
+        return
+    gear = np.array([-_number(el, "optimal_force", 1.0, ctx), 0, 0, 0, 0, 0])
+    _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=name)
 
 
 def convert_point_to_point_actuator(ctx: _Context, el: etree._Element) -> None:

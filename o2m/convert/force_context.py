@@ -126,12 +126,22 @@ class Ligament:
 
 @dataclass
 class Spring:
-    """A PointToPointSpring: its tendon, stiffness (N/m) and rest length (m)."""
+    """A PointToPointSpring or PathSpring: its tendon, stiffness (N/m) and rest length (m);
+    ``slack``: no force below the rest length (PathSpring); ``dissipation`` (s/m): PathSpring's
+    damping factor, not converted."""
 
     name: str
     tendon: str
     stiffness: float
     rest_length: float
+    element: str = "PointToPointSpring"
+    slack: bool = False
+    dissipation: float = 0.0
+
+    def tension(self, length: float) -> float:
+        """OpenSim's tension (N, positive pulling) at ``length`` (m), at rest."""
+        stretch = length - self.rest_length
+        return self.stiffness * (max(stretch, 0.0) if self.slack else stretch)
 
 
 @dataclass

@@ -7,14 +7,15 @@ elements to the spec of an :class:`~o2m.mjcf.MjcfBuilder`, recording in a per-co
 * **CoordinateLimitForce**: joint springs, dead-band tendons and joint damping
   (:mod:`o2m.convert.limit_forces`).
 * **Ligament**: a spring on the spatial tendon of its path (:mod:`o2m.convert.ligaments`).
-* **PointToPointSpring**: an exact spring on a two-site spatial tendon (:mod:`o2m.convert.springs`).
+* **PointToPointSpring**: an exact spring on a two-site spatial tendon; **PathSpring**: the spring
+  of its path's tendon, without its damping (:mod:`o2m.convert.springs`).
 * **BushingForce**: where its deflections are linear in the coordinates between its frames, the
   spring and damping of its one coordinate's joint or fixed tendons on several
   (:mod:`o2m.convert.bushings`); skipped otherwise, unless within a given tolerance.
 * **ExpressionBasedCoordinateForce**: its joint's spring and damping when the expression is linear
   in q and qdot (:mod:`o2m.convert.expression_forces`); skipped otherwise.
 * **CoordinateActuator**, **ActivationCoordinateActuator**, **TorqueActuator**, **PointActuator**,
-  **PointToPointActuator**: motors on joints, sites and two-point tendons (:mod:`o2m.convert.actuators`).
+  **PointToPointActuator**, **PathActuator**: motors on joints, sites and tendons (:mod:`o2m.convert.actuators`).
 * **HuntCrossleyForce**, **SmoothSphereHalfSpaceForce**: geoms for their ContactSpheres and
   ContactHalfSpaces and explicit contact pairs (:mod:`o2m.convert.contact`); ElasticFoundationForce
   is listed as skipped, and so is contact geometry no converted force uses.
@@ -37,6 +38,7 @@ from lxml import etree
 from o2m.convert.actuators import (
     convert_activation_coordinate_actuator,
     convert_coordinate_actuator,
+    convert_path_actuator,
     convert_point_actuator,
     convert_point_to_point_actuator,
     convert_torque_actuator,
@@ -60,7 +62,7 @@ from o2m.convert.expression_forces import (
 from o2m.convert.force_context import ForceConversion, Ligament, LimitForce, SideFit, _applies_force, _Context
 from o2m.convert.ligaments import convert_blankevoort, convert_ligament, fit_ligaments, measure_ligaments
 from o2m.convert.limit_forces import convert_coordinate_limit_force, fit_deadband, measure_limit_forces, motion_type
-from o2m.convert.springs import convert_point_to_point_spring, measure_springs
+from o2m.convert.springs import convert_path_spring, convert_point_to_point_spring, measure_springs
 from o2m.mj import mjcf_text
 from o2m.osim.kinds import LIGAMENT_TYPES
 from o2m.osim.skeleton import SkeletonReader, Skipped
@@ -76,6 +78,7 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "Ligament": convert_ligament,
     "Blankevoort1991Ligament": convert_blankevoort,
     "PointToPointSpring": convert_point_to_point_spring,
+    "PathSpring": convert_path_spring,
     "BushingForce": convert_bushing,
     "ExpressionBasedCoordinateForce": convert_expression_force,
     "SpringGeneralizedForce": convert_spring_generalized_force,
@@ -83,6 +86,7 @@ HANDLERS: Mapping[str, Callable[[_Context, etree._Element], None]] = MappingProx
     "CoordinateActuator": convert_coordinate_actuator,
     "ActivationCoordinateActuator": convert_activation_coordinate_actuator,
     "PointToPointActuator": convert_point_to_point_actuator,
+    "PathActuator": convert_path_actuator,
     "TorqueActuator": convert_torque_actuator,
     "PointActuator": convert_point_actuator,
     "HuntCrossleyForce": convert_hunt_crossley,

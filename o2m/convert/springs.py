@@ -1,4 +1,4 @@
-"""PointToPointSpring as a spring on a two-site spatial tendon.
+"""PointToPointSpring as a spring on a two-site spatial tendon; PathSpring as its path's tendon's spring.
 
 OpenSim's PointToPointSpring pulls its two points together with ``stiffness · (L - rest_length)``
 along the straight line between them (pushing them apart when shorter than ``rest_length``), L
@@ -7,6 +7,12 @@ spring ``-stiffness · (L - springlength)`` along that same line (J^T times the 
 spring converts exactly: ``stiffness`` (N/m) and ``springlength = [rest_length, rest_length]`` (m,
 no dead band). :func:`measure_springs` checks it at random poses (MuJoCo's tendon force against
 the formula at MuJoCo's length).
+
+OpenSim's PathSpring pulls along its GeometryPath (the tendon :mod:`o2m.convert.tendons` builds)
+with ``stiffness · max(L - resting_length, 0) · (1 + dissipation · dL/dt)``. Its elastic part is
+MuJoCo's tendon spring with the dead band ``springlength = [0, resting_length]``, exactly; the
+damping, proportional to the stretch, has no MuJoCo counterpart and is left out (the report says
+by how much it changes the tension: ``dissipation · |dL/dt|`` of it).
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
 from o2m.transforms import Transform
 
-__all__ = ["convert_point_to_point_spring", "measure_springs"]
+__all__ = ["convert_path_spring", "convert_point_to_point_spring", "measure_springs"]
 
 
 def _end_frame(ctx: _Context, el: etree._Element, i: int) -> tuple[str, Transform]:
@@ -73,14 +79,38 @@ def convert_point_to_point_spring(ctx: _Context, el: etree._Element) -> None:
     ctx.out.springs.append(Spring(name, tendon.name, stiffness, rest))
 
 
+def convert_path_spring(ctx: _Context, el: etree._Element) -> None:
+    """PathSpring -> the elastic spring (dead band below ``resting_length``) of its path's tendon."""
+    b, name = ctx.builder, el.get("name")
+    if name not in ctx.names["tendon"]:
+        ctx.out.skipped.append(Skipped(el.tag, name, "its path became no MuJoCo tendon"))
+        return
+    stiffness = _number(el, "stiffness", math.nan, ctx)
+    rest = _number(el, "resting_length", math.nan, ctx)
+    dissipation = _number(el, "dissipation", math.nan, ctx)
+    for prop, value in (("stiffness", stiffness), ("resting_length", rest), ("dissipation", dissipation)):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise b.doc.error(el, f"has <{prop}> {value:g}; a PathSpring needs a finite {prop} >= 0")
+    tendon = ctx.spec.tendon(name)
+    tendon.stiffness = [stiffness, 0.0, 0.0]
+    tendon.springlength = [0.0, rest]
+    ctx.out.exact[("tendon", name)] = {"stiffness": np.array([stiffness, 0.0, 0.0]),
+                                       "springlength": np.array([0.0, rest])}
+    ctx.out.springs.append(Spring(name, name, stiffness, rest, el.tag, slack=True, dissipation=dissipation))
+
+
 def measure_springs(out: ForceConversion, model: mujoco.MjModel, builder: MjcfBuilder) -> None:
     """Record each spring's worst |MuJoCo tendon tension - stiffness (L - rest_length)| (N) over
     random poses in ``builder.result.approximations`` (round-off for the exact mapping)."""
     for spring in out.springs:
-        worst = worst_tendon_spring_error(
-            model, builder, spring.tendon, lambda length, sp=spring: sp.stiffness * (length - sp.rest_length))
-        builder.result.approximations.append(Approximation(
-            "PointToPointSpring", spring.name,
-            f"a spring on spatial tendon '{spring.tendon}' between its two points: stiffness "
-            f"{spring.stiffness:g} N/m, springlength {spring.rest_length:g} m", worst, "N",
-            f"MuJoCo's tendon tension against stiffness (L - rest_length) at {N_POSES} poses"))
+        worst = worst_tendon_spring_error(model, builder, spring.tendon, spring.tension)
+        if spring.slack:
+            what = (f"the spring of its path's tendon: stiffness {spring.stiffness:g} N/m, slack below "
+                    f"{spring.rest_length:g} m; its dissipation {spring.dissipation:g} s/m is left out (OpenSim's "
+                    f"tension times 1 + dissipation dL/dt: {100 * spring.dissipation:.3g} % at 1 m/s)")
+            how = f"MuJoCo's tendon tension against stiffness max(L - resting_length, 0) at {N_POSES} poses, at rest"
+        else:
+            what = (f"a spring on spatial tendon '{spring.tendon}' between its two points: stiffness "
+                    f"{spring.stiffness:g} N/m, springlength {spring.rest_length:g} m")
+            how = f"MuJoCo's tendon tension against stiffness (L - rest_length) at {N_POSES} poses"
+        builder.result.approximations.append(Approximation(spring.element, spring.name, what, worst, "N", how))

@@ -25,7 +25,6 @@ from o2m.convert.force_context import _applies_force
 from o2m.convert.pathforces import PathForces
 from o2m.convert.pathpoints import PathContext
 from o2m.convert.wraps import PathGeom, WrapGeoms
-from o2m.osim.kinds import LIGAMENT_TYPES
 from o2m.osim.paths import MUSCLE_TYPES, Path, WrapObject
 from o2m.transforms import Transform
 
@@ -153,8 +152,6 @@ class TendonBuilder:
                 self.b.result.notes.append(
                     f"{path.owner_type} '{path.owner}' is disabled in OpenSim (appliesForce false): its actuator is "
                     f"in group {DISABLED_MUSCLE_GROUP}, which the model disables (option actuatorgroupdisable)")
-        elif path.owner_type not in LIGAMENT_TYPES:  # a ligament's spring is added by o2m.forces
-            self.b.result.notes.append(f"{path.owner_type} '{path.owner}': tendon only (no actuator yet)")
 
 
 def add_paths(builder: MjcfBuilder, paths: list[Path], wraps: dict[str, WrapObject], *,

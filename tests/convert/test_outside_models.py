@@ -608,3 +608,43 @@ def test_a_transform_axis_without_a_function_is_constant_zero(tmp_path):
     mujoco.mj_kinematics(m, d)
     assert np.allclose(d.xpos[m.body("b").id], 0.0, atol=1e-12)  # no translation, the body origin stays
     assert not np.allclose(d.xmat[m.body("b").id], np.eye(3).ravel())  # but rotation3 turns it
+
+
+def test_a_path_actuator_pulls_and_a_path_spring_pulls_when_stretched_as_in_opensim(tmp_path):
+    """PathActuator and PathSpring were tendons without force: a motor (gear -optimal_force) and
+    a slack-below-rest spring on their paths' tendons. At poses where the spring is stretched and
+    where it is slack, with OpenSim's actuation overridden and MuJoCo's ctrl, at rest and gravity
+    off, the accelerations agree; the spring's left-out damping is in its approximation."""
+    m, b = _slider_model("path_forces_converted")
+    m.setGravity(osim.Vec3(0))
+    pa = osim.PathActuator()
+    pa.setName("pull")
+    pa.setOptimalForce(30.0)
+    pa.addNewPathPoint("a1", m.getGround(), osim.Vec3(-0.3, 0.05, 0))
+    pa.addNewPathPoint("a2", b, osim.Vec3(0, 0.02, 0))
+    m.addForce(pa)
+    ps = osim.PathSpring("spring", 0.32, 500.0, 0.01)
+    ps.updGeometryPath().appendNewPathPoint("s1", m.getGround(), osim.Vec3(0.3, 0.0, 0.02))
+    ps.updGeometryPath().appendNewPathPoint("s2", b, osim.Vec3(0, 0, 0))
+    m.addForce(ps)
+    m.finalizeConnections()
+    src = tmp_path / "path_forces_converted.osim"
+    m.printToXML(str(src))
+    conv = convert(src, tmp_path / "out", convert_options())
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert mj.actuator_gear[mj.actuator("pull").id][0] == -30.0
+    spring = next(a for a in conv.report.approximations if a.element == "PathSpring")
+    assert spring.max_error < 1e-9 and "dissipation 0.01 s/m is left out" in spring.what
+    model = osim.Model(str(src))
+    state = model.initSystem()
+    pull = osim.ScalarActuator.safeDownCast(model.getForceSet().get("pull"))
+    pull.overrideActuation(state, True)
+    d = mujoco.MjData(mj)
+    for x, control in ((-0.04, 0.7), (0.03, -0.4), (-0.05, 1.0)):  # spring stretched 20.6 mm, slack, 30.6 mm
+        model.getCoordinateSet().get("s_coord_0").setValue(state, x)
+        pull.setOverrideActuation(state, control * 30.0)
+        model.realizeAcceleration(state)
+        d.qpos[0], d.ctrl[0] = x, control
+        mujoco.mj_forward(mj, d)
+        theirs = model.getCoordinateSet().get("s_coord_0").getAccelerationValue(state)
+        assert d.qacc[0] == pytest.approx(theirs, rel=1e-9, abs=1e-9), x
