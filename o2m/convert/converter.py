@@ -35,7 +35,7 @@ from o2m.convert.pathforces import PATH_FORCE_MODES
 from o2m.convert.records import Approximation
 from o2m.convert.report import ConversionReport
 from o2m.convert.step_options import choose_step_options
-from o2m.convert.tendons import add_paths, tendon_length_ranges
+from o2m.convert.tendons import DISABLED_MUSCLE_GROUP, add_paths, tendon_length_ranges
 from o2m.convert.visuals import add_geometry
 from o2m.convert.wrap_choice import split_variants
 from o2m.convert.wrap_split import add_wrap_splits, describe_kept, narrow_wrap_ranges, split_sites
@@ -249,6 +249,7 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
     fits = fit_muscles(osim)
     elements = {p.owner: p.element for p in paths}
     by_note: dict[str, list[str]] = {}  # the fits' notes (activation and force-velocity mappings), muscles sharing one
+    damped: dict[str, float] = {}
     for act in result.spec.actuators:
         p = fits.get(act.name)
         if p is None:
@@ -260,6 +261,9 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
             raise doc.error(el, f"fits a MuJoCo muscle MuJoCo cannot load ({why}): its properties are out of "
                                 f"scale ({props})")
         p.apply_to(act)
+        if p.damping > 0.0 and act.group != DISABLED_MUSCLE_GROUP:
+            result.spec.tendon(act.target).damping = [p.damping, 0.0, 0.0]
+            damped[p.name] = p.damping
         if math.isfinite(p.default_activation) and p.default_activation > 0.0:
             result.activations[act.name] = float(np.clip(p.default_activation, p.min_activation, 1.0))
         result.approximations.append(Approximation(
@@ -269,6 +273,11 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
         for note in p.notes:
             by_note.setdefault(note, []).append(p.name)
     result.notes += [f"{_muscle_list(names)}: {note}" for note, names in by_note.items()]
+    if damped:
+        result.notes.append(
+            f"{_muscle_list(sorted(damped))}: OpenSim's fiber damping (a passive force, Millard's default 0.1) is "
+            f"their tendons' damping, {min(damped.values()):.4g} to {max(damped.values()):.4g} N s/m (fiber_damping "
+            f"F cos²α / (vmax lopt), rigid tendon, α at the optimal fiber length)")
     started = sorted(n for n in result.activations if n in fits)
     if started:
         result.notes.append(f"{_muscle_list(started)}: the 'default-pose' keyframe's act starts each at its "

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from lxml import etree
 
-from o2m.convert.muscle_types import _activation_times, _force_velocity, _prop
+from o2m.convert.muscle_types import _activation_times, _force_velocity, _prop, fiber_damping
 from o2m.errors import ModelFileError
 from o2m.osim import runtime
 from o2m.osim.couplers import coupler_chain, satisfy_constraints
@@ -54,7 +54,7 @@ class MuscleSample:
     ``seed`` of the fit's random restarts, ``min_activation``, the activation OpenSim uses when
     asked for 0 (Thelen's and Millard's ``minimum_activation``; ``passive`` is taken there), and
     ``default_activation``, its activation in OpenSim's default state (NaN for a muscle without
-    an activation state)."""
+    an activation state), and ``fiber_damping``, normalized (:func:`~o2m.convert.muscle_types.fiber_damping`)."""
 
     name: str
     type: str
@@ -74,6 +74,7 @@ class MuscleSample:
     seed: int
     min_activation: float = 0.0
     default_activation: float = math.nan
+    fiber_damping: float = 0.0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -423,6 +424,7 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_le
             timeconst=(float(timeconst[0]), float(timeconst[1])), notes=nt, seed=seed,
             min_activation=_floor_activation(a_pas[k]),
             default_activation=_default_activation(pm.muscles[i], pm.state),
+            fiber_damping=fiber_damping(m, type_name),
         ))
     return tasks
 

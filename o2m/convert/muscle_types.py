@@ -14,7 +14,7 @@ import numpy as np
 
 from o2m.osim import runtime
 
-__all__ = ["MUJOCO_DEFAULTS", "SUPPORTED_MUSCLES"]
+__all__ = ["FIBER_DAMPED", "MUJOCO_DEFAULTS", "SUPPORTED_MUSCLES", "fiber_damping"]
 
 #: OpenSim muscle types :func:`~o2m.convert.muscles.fit_muscles` maps.
 SUPPORTED_MUSCLES = (
@@ -230,6 +230,18 @@ def _thelen_fiber_velocity(af: float, flen: float, threshold: float, damping: fl
     return dlce
 
 
+#: Muscle types whose fiber force has the activation-independent term ``fiber_damping · v / (vmax ·
+#: optimal fiber length)`` times the max isometric force (v the fiber velocity, m/s).
+FIBER_DAMPED = frozenset({"Millard2012EquilibriumMuscle", "DeGrooteFregly2016Muscle", "MeyerFregly2016Muscle"})
+
+
+def fiber_damping(m, type_name: str) -> float:
+    """The muscle's normalized fiber damping (force / max isometric force per normalized fiber
+    velocity; 0 for a type without the term). Millard's default is 0.1: a passive damper that
+    resists every fiber motion, even unexcited."""
+    return _prop(m, "fiber_damping", 0.0) if type_name in FIBER_DAMPED else 0.0
+
+
 def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float, list[str]]:
     """OpenSim's force-velocity multiplier at full activation and optimal length, at normalized
     fiber velocities ``u`` (fiber velocity / (vmax * optimal fiber length), negative =
@@ -252,13 +264,8 @@ def _force_velocity(m, type_name: str, u: np.ndarray) -> tuple[np.ndarray, float
         fn = _downcast(m, type_name).get_force_velocity_curve()
         fv = np.array([fn.calcValue(osim.Vector(1, float(x))) for x in u])
         return fv, _prop(m, "max_contraction_velocity"), notes
-    if type_name == "MeyerFregly2016Muscle":
-        # the fiber force at full activation and optimal length: fv(u) + fiber_damping * u
-        d = _prop(m, "fiber_damping", 0.0)
-        fv = np.array([osim.MeyerFregly2016Muscle.calcForceVelocityMultiplier(float(x)) for x in u]) + d * u
-        if d:
-            notes.append(f"fiber damping {d:.3g} (normalized force per normalized velocity) folded into the "
-                         "force-velocity curve")
+    if type_name == "MeyerFregly2016Muscle":  # its fiber damping is the tendon's (fiber_damping)
+        fv = np.array([osim.MeyerFregly2016Muscle.calcForceVelocityMultiplier(float(x)) for x in u])
         return fv, _prop(m, "max_contraction_velocity"), notes
     if type_name == "Delp1990Muscle_Deprecated":
         return _delp_force_velocity(m, u, notes)

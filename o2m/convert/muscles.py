@@ -104,6 +104,7 @@ class MuscleParams:
     positive when pulling) at the evaluated MTU lengths (m); NaN where OpenSim found no
     equilibrium. ``velocity_rms_pct`` is the RMS error of the force-velocity fit (% of force at
     optimal length, over normalized fiber velocities within ±:data:`~o2m.convert.muscle_samples.FV_FIT_RANGE`).
+    ``damping`` (N s/m): the tendon damping that stands for OpenSim's fiber damping (:func:`tendon_damping`).
     """
 
     name: str
@@ -128,6 +129,7 @@ class MuscleParams:
     velocity_rms_pct: float = math.nan
     min_activation: float = 0.0
     default_activation: float = math.nan
+    damping: float = 0.0
     lengths: np.ndarray | None = field(default=None, repr=False)
     opensim_active: np.ndarray | None = field(default=None, repr=False)
     opensim_passive: np.ndarray | None = field(default=None, repr=False)
@@ -333,6 +335,16 @@ def _errors(p: MuscleParams, t: MuscleSample) -> None:
     p.err_passive_rms_pct = float(np.sqrt(np.mean(ep**2))) if ep.size else math.nan
 
 
+def tendon_damping(t: MuscleSample) -> float:
+    """MuJoCo tendon damping (N s/m) for OpenSim's fiber damping term ``fiber_damping · F · v_f /
+    (vmax · lopt)``: with a rigid tendon the fiber moves ``cos α`` times as fast as the tendon and
+    pulls on it ``cos α`` times its force, so ``b = fiber_damping · F cos²α / (vmax · lopt)``, α
+    taken at the optimal fiber length (MuJoCo's muscles have no damping of their own)."""
+    if t.fiber_damping <= 0.0:
+        return 0.0
+    return t.fiber_damping * t.force * math.cos(t.alpha) ** 2 / (t.vmax_os * t.lopt)
+
+
 def _fit_one(t: MuscleSample) -> MuscleParams:
     x, x0, cost, start_cost = _fit_length(t)
     r0, w, lmin, lmax, fpmax = (float(v) for v in x)
@@ -347,7 +359,7 @@ def _fit_one(t: MuscleSample) -> MuscleParams:
         start={"range0": float(x0[0]), "range1": float(x0[0] + x0[1]), "lmin": float(x0[2]),
                "lmax": float(x0[3]), "fpmax": float(x0[4])},
         velocity_rms_pct=vel_rms, min_activation=t.min_activation, default_activation=t.default_activation,
-        lengths=t.lengths,
+        damping=tendon_damping(t), lengths=t.lengths,
         opensim_active=t.active, opensim_passive=t.passive,
     )
     _errors(p, t)
