@@ -146,7 +146,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
     result = builder.build()
     result.notes += [f"coordinate '{c}' of joint '{j}' is MuJoCo joint '{n}' (another joint has a coordinate "
                      f"'{c}'; MuJoCo names are unique)" for j, c, n in skel.names.renamed()]
-    add_constraints(builder)
+    constraint_eqs = add_constraints(builder)
     massless = check_massless(skel, builder, osim)
     reader = SkeletonReader(doc)
     reader.names = skel.names
@@ -194,7 +194,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
         _set_length_ranges(spec, model, builder)
         forces.fit_ligaments(force_conv, spec, model, builder)
         forces.fit_contacts(force_conv, spec, model, builder)
-        key_qpos = assembled_pose(model, skel, osim, result)
+        key_qpos = assembled_pose(model, skel, osim, result, constraint_eqs)
         spec.add_key(name="default-pose", qpos=key_qpos, act=_default_activations(model, result))
         final = spec.compile()
         if disable_single_island(spec, final):

@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 
 from o2m.convert.records import BuildResult
-from o2m.mj.posing import equality_residual, joint_equality_plan, pose_mujoco
+from o2m.mj.posing import joint_equality_plan, pose_mujoco
 from o2m.osim.assembly import assembled_defaults
 from o2m.osim.skeleton import Skeleton
 
@@ -32,11 +32,12 @@ MOVED = 1e-12
 NAMED = 8
 
 
-def assembled_pose(model: mujoco.MjModel, skel: Skeleton, osim: Path, result: BuildResult) -> np.ndarray:
+def assembled_pose(model: mujoco.MjModel, skel: Skeleton, osim: Path, result: BuildResult,
+                   equalities: list[str]) -> np.ndarray:
     """The keyframe ``qpos`` (nq,): ``model.qpos0`` where the skeleton has no body constraint or
     OpenSim's assembly moves no coordinate, else OpenSim's assembled default state (module
-    docstring), with a note naming the coordinates moved and the equalities' residual before
-    and after (m, or rad for a weld's rotation)."""
+    docstring), with a note naming the coordinates moved and the residual of the constraints'
+    ``equalities`` (their names) before and after (m, or rad for a weld's rotation)."""
     if not (skel.point_on_lines or skel.body_constraints):
         return model.qpos0.copy()
     coords = assembled_defaults(osim)
@@ -47,17 +48,17 @@ def assembled_pose(model: mujoco.MjModel, skel: Skeleton, osim: Path, result: Bu
     given = {c.name: c.value for c in coords if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, c.name) >= 0}
     pose_mujoco(model, data, given, plan=joint_equality_plan(model))
     _slide_onto_lines(model, data, skel)
-    after = equality_residual(model, data)
+    after = _residual(model, data, equalities)
     qpos = data.qpos.copy()
     data.qpos[:] = model.qpos0
-    before = equality_residual(model, data)
+    before = _residual(model, data, equalities)
     moved.sort(key=lambda c: -abs(c.moved))
     listed = ", ".join(f"{c.name} {c.moved:+.4g}" for c in moved[:NAMED])
     more = f" and {len(moved) - NAMED} more" if len(moved) > NAMED else ""
     result.notes.append(
         f"the 'default-pose' keyframe is OpenSim's assembled default state (initSystem), not the coordinates' "
         f"default values: assembly moved {len(moved)} coordinate(s) by more than {MOVED:g} ({listed}{more}; rad "
-        f"or m); the body "
+        f"or m); the constraints' "
         f"equalities' largest residual there {after:.3g} (at qpos0, the default values, {before:.3g}; m, or rad "
         f"for a weld's rotation); mj_resetData starts at qpos0, mj_resetDataKeyframe at the assembled state")
     return qpos
@@ -72,3 +73,13 @@ def _slide_onto_lines(model: mujoco.MjModel, data: mujoco.MjData, skel: Skeleton
         gap = data.site(f"{c.name}_point").xpos - data.site(f"{c.name}_on_line").xpos
         data.qpos[jnt.qposadr[0]] = float(np.dot(gap, data.xaxis[jnt.id]))
     mujoco.mj_kinematics(model, data)
+
+
+def _residual(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> float:
+    """The largest violation of the equalities ``names`` at ``data.qpos`` (m, or rad for a weld's
+    rotation; ``mj_fwdPosition``)."""
+    mujoco.mj_fwdPosition(model, data)
+    ids = {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, n) for n in names}
+    rows = [i for i in range(data.nefc) if data.efc_type[i] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+            and data.efc_id[i] in ids]
+    return float(np.abs(data.efc_pos[rows]).max(initial=0.0))

@@ -3,6 +3,8 @@ coordinates' default values leave open starts closed in MuJoCo, as in OpenSim.""
 
 from __future__ import annotations
 
+import re
+
 import mujoco
 import numpy as np
 import opensim as osim
@@ -72,6 +74,9 @@ def test_keyframe_is_opensims_assembled_state(tmp_path, kind):
     assert np.linalg.norm(d.body("block").xpos - _opensim_block(path)) < 1e-8
     note = next(n for n in conv.report.notes if n.startswith("the 'default-pose' keyframe is OpenSim's assembled"))
     assert "pin_coord_0" in note and "free_coord_5 +0.03" in note, note
+    after, before = (float(x) for x in re.search(r"residual there (\S+) \(at qpos0, the default values, (\S+);",
+                                                 note).groups())
+    assert after < 1e-8 and before > 0.02, note
 
 
 def test_keyframe_is_qpos0_where_the_defaults_are_assembled(tmp_path):
