@@ -127,10 +127,10 @@ def pose_ghost(model: mujoco.MjModel, data: mujoco.MjData, fit: BushingFit) -> N
     mujoco.mj_kinematics(model, data)
 
 
-def ghosts_posed(model: mujoco.MjModel, fits: list[BushingFit]) -> np.ndarray:
-    """``qpos0`` (nq,) with every ghost of ``fits`` where its weld holds."""
+def ghosts_posed(model: mujoco.MjModel, fits: list[BushingFit], qpos: np.ndarray | None = None) -> np.ndarray:
+    """``qpos`` (nq; default ``qpos0``) with every ghost of ``fits`` where its weld holds."""
     data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
+    data.qpos[:] = model.qpos0 if qpos is None else qpos
     mujoco.mj_kinematics(model, data)
     for fit in fits:
         pose_ghost(model, data, fit)

@@ -38,12 +38,15 @@ LINE_BODY_MASS = 1e-3
 LINE_BODY_INERTIA = 1e-8
 
 
-def add_constraints(builder: MjcfBuilder) -> None:
-    """Add every body-to-body constraint of the builder's skeleton (after :meth:`MjcfBuilder.build`)."""
+def add_constraints(builder: MjcfBuilder) -> list[str]:
+    """Add every body-to-body constraint of the builder's skeleton (after :meth:`MjcfBuilder.build`);
+    returns the names of their equalities."""
     for c in builder.skel.point_on_lines:
         add_point_on_line(builder, c)
+    names = [c.name for c in builder.skel.point_on_lines]
     for c in builder.skel.body_constraints:
-        add_body_constraint(builder, c)
+        names.append(add_body_constraint(builder, c))
+    return names
 
 
 def _in_mujoco_frame(body: str, v: np.ndarray) -> np.ndarray:
@@ -97,9 +100,9 @@ def _site_at(builder: MjcfBuilder, body: str, frame: Transform, name: str) -> No
     builder.exact[("site", name)] = {"pos": pos, "quat": quat}
 
 
-def add_body_constraint(builder: MjcfBuilder, c: BodyConstraint) -> None:
+def add_body_constraint(builder: MjcfBuilder, c: BodyConstraint) -> str:
     """The two sites and the equality (weld, connect, or tendon length) of one WeldConstraint,
-    PointConstraint or ConstantDistanceConstraint (module docstring)."""
+    PointConstraint or ConstantDistanceConstraint (module docstring); returns the equality's name."""
     for body in (c.body1, c.body2):
         if body not in builder.bodies:
             raise builder.doc.error(c.element, f"names body '{body}', which the model does not have")
@@ -126,3 +129,4 @@ def add_body_constraint(builder: MjcfBuilder, c: BodyConstraint) -> None:
         what = f"a {'weld' if kind == mujoco.mjtEq.mjEQ_WELD else 'connect'} equality between sites '{s1}' and '{s2}'"
     eq.solref, eq.solimp = list(EQUALITY_SOLREF), list(EQUALITY_SOLIMP)
     builder.result.notes.append(f"{c.type} '{name}' ('{c.body1}' to '{c.body2}'): {what}")
+    return name

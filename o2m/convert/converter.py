@@ -27,6 +27,7 @@ from o2m.convert.bushing_ghost import ghosts_posed
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.constraints import add_constraints
 from o2m.convert.coordinates import unenforced_clamps
+from o2m.convert.default_pose import assembled_pose
 from o2m.convert.islands import disable_single_island
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.massless import check_massless
@@ -152,7 +153,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
     result.notes += unenforced_clamps(skel, options.clamped_limits)
     result.notes += [f"coordinate '{c}' of joint '{j}' is MuJoCo joint '{n}' (another joint has a coordinate "
                      f"'{c}'; MuJoCo names are unique)" for j, c, n in skel.names.renamed()]
-    add_constraints(builder)
+    constraint_eqs = add_constraints(builder)
     massless = check_massless(skel, builder, osim)
     reader = SkeletonReader(doc)
     reader.names = skel.names
@@ -200,7 +201,8 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
         _set_length_ranges(spec, model, builder)
         forces.fit_ligaments(force_conv, spec, model, builder)
         forces.fit_contacts(force_conv, spec, model, builder)
-        spec.add_key(name="default-pose", qpos=model.qpos0.copy(), act=_default_activations(model, result))
+        key_qpos = assembled_pose(model, skel, osim, result, constraint_eqs)
+        spec.add_key(name="default-pose", qpos=key_qpos, act=_default_activations(model, result))
         final = spec.compile()
         if disable_single_island(spec, final):
             result.notes.append("constraint islands disabled (<flag island=\"disable\"/>): the degrees of freedom "
@@ -209,12 +211,12 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
         result.notes += choose_step_options(spec, final, mujoco.__version__)
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
-        xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), model.qpos0)
+        xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), key_qpos)
         _check_finite(xml_text, osim)
         xml_path.write_text(xml_text)
         written = _load_written(xml_path, osim)
         if any(b.ghost_body for b in force_conv.bushings):  # posed on the written numbers, to round-off
-            xml_path.write_text(_default_pose(xml_text, ghosts_posed(written, force_conv.bushings)))
+            xml_path.write_text(_default_pose(xml_text, ghosts_posed(written, force_conv.bushings, key_qpos)))
             written = _load_written(xml_path, osim)
         forces.measure(force_conv, written, osim, builder)
         warnings = massless + [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
@@ -322,7 +324,7 @@ def _relative_meshdir(xml: str) -> str:
 
 
 def _default_pose(xml: str, qpos0) -> str:
-    """MJCF text whose ``default-pose`` keyframe holds ``qpos0`` in full precision."""
+    """MJCF text whose ``default-pose`` keyframe holds ``qpos0`` (nq,) in full precision."""
     root = mjcf_text.parse(xml)
     for key in root.iter("key"):
         if key.get("name") == "default-pose":

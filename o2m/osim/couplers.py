@@ -16,10 +16,11 @@ from o2m.osim import runtime
 __all__ = ["coupler_chain", "satisfy_constraints", "set_coupled"]
 
 
-def coupler_chain(model: Any, state: Any) -> list[tuple[Any, list[Any], Any, float]] | None:
+def coupler_chain(model: Any, state: Any, *, partial: bool = False) -> list[tuple[Any, list[Any], Any, float]] | None:
     """The enforced couplers of ``model`` as (dependent Coordinate, independent Coordinates,
     Function, scale factor), each after the couplers that set its independents; None when some
-    enforced constraint is not a coupler, a coupler names a coordinate the model lacks, or the
+    enforced constraint is not a coupler (unless ``partial``: then the couplers alone, which
+    satisfy only their own constraints), a coupler names a coordinate the model lacks, or the
     couplers form a cycle: then only OpenSim's assembler poses the model."""
     osim = runtime.opensim()
     cs = model.getCoordinateSet()
@@ -32,6 +33,8 @@ def coupler_chain(model: Any, state: Any) -> list[tuple[Any, list[Any], Any, flo
             continue
         cc = osim.CoordinateCouplerConstraint.safeDownCast(con)
         if cc is None:
+            if partial:
+                continue
             return None
         names = cc.getIndependentCoordinateNames()
         indep = [names.get(j) for j in range(names.getSize())]

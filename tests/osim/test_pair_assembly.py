@@ -60,3 +60,66 @@ def test_a_failed_assembly_leaves_later_ones_exact(pair):
     assert _moved(pair) == pytest.approx(1.0, abs=1e-6)  # 1/21 while the relaxation stayed
     state = pair.os_state({"q1": 0.3})
     assert pair.os_model.getCoordinateSet().get("q2").getValue(state) == pytest.approx(0.3, abs=1e-9)
+
+
+def _held_block(path) -> None:
+    """Ground -> arm (pin q1) with a free block held at its end by a PointConstraint; ground ->
+    tail (pin q2 = q1 by a coupler); ground -> other (pin q3, clamped to [-1, 1]), which no
+    constraint involves."""
+    m = osim.Model()
+    m.setName("held_block")
+    bodies = {n: osim.Body(n, 1.0, osim.Vec3(0, -0.1, 0), osim.Inertia(0.01, 0.01, 0.01))
+              for n in ("arm", "tail", "other", "block")}
+    for b in bodies.values():
+        m.addBody(b)
+    for k, name in ((1, "arm"), (2, "tail"), (3, "other")):
+        j = osim.PinJoint(f"pin{k}", m.getGround(), osim.Vec3(0.3 * k, 0, 0), osim.Vec3(0), bodies[name],
+                          osim.Vec3(0), osim.Vec3(0))
+        j.updCoordinate().setName(f"q{k}")
+        j.updCoordinate().setRangeMin(-1.0)
+        j.updCoordinate().setRangeMax(1.0)
+        j.updCoordinate().setDefaultClamped(k == 3)
+        m.addJoint(j)
+    m.addJoint(osim.FreeJoint("free", m.getGround(), osim.Vec3(0), osim.Vec3(0), bodies["block"], osim.Vec3(0),
+                              osim.Vec3(0)))
+    add_coupler(m, "couple", "q1", "q2", osim.LinearFunction(1.0, 0.0))
+    m.addConstraint(osim.PointConstraint(bodies["arm"], osim.Vec3(0, -0.5, 0), bodies["block"], osim.Vec3(0)))
+    m.finalizeConnections()
+    m.printToXML(str(path))
+
+
+class _Counted:
+    """An OpenSim model that counts its ``assemble`` calls."""
+
+    def __init__(self, model):
+        self.model, self.calls = model, 0
+
+    def __getattr__(self, name):
+        return getattr(self.model, name)
+
+    def assemble(self, state):
+        self.calls += 1
+        return self.model.assemble(state)
+
+
+def test_a_step_no_other_constraint_involves_skips_the_assembler(tmp_path):
+    _held_block(tmp_path / "held.osim")
+    conv = convert(tmp_path / "held.osim", tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    pair = ModelPair(tmp_path / "held.osim", conv.xml)
+    pair.os_model = counted = _Counted(pair.os_model)
+    values = pair.os_indep_values(pair.os_state({"q1": 0.4, "q3": 0.2}))
+    assert counted.calls == 1
+    cs = pair.os_model.getCoordinateSet()
+    for step in (0.3, 0.9):  # q3 to 0.5 and 1.1 (beyond its clamped range: the assembler's to keep)
+        state = pair.os_state({**values, "q3": 0.2 + step})
+        assert counted.calls == (1 if step < 0.5 else 2)
+        reference = osim.State(pair.init_state)  # as os_state assembles: from the initial state
+        for c in pair.indep:
+            c.setValue(reference, values[pair.name(c)] + (step if pair.name(c) == "q3" else 0.0), False)
+        pair.os_model.updateAssemblyConditions(reference)
+        pair.os_model.model.assemble(reference)
+        for c in pair.coords:  # the assembler's pose, the coupler's dependent included
+            assert c.getValue(state) == pytest.approx(c.getValue(reference), abs=1e-9), c.getName()
+    assert cs.get("q2").getValue(state) == pytest.approx(values["q1"], abs=1e-12)
+    pair.os_state({**values, "q1": values["q1"] + 1e-5})  # moves the held point: assembled
+    assert counted.calls == 3
