@@ -79,6 +79,10 @@ FIT_STRIDE = 4
 #: Random restarts of the length fit besides the two deterministic starts (more change the
 #: bundled models' RMS errors by < 0.05 % of max isometric force).
 N_RANDOM_STARTS = 2
+#: The force (max isometric forces) at which the length fit saturates both models' forces
+#: (:func:`_residuals`): an order of magnitude past any working force. Over their own coordinate
+#: ranges the corpus' muscles stay below it but gait2392's quadratus femoris (12.4).
+FIT_FORCE_CAP = 10.0
 
 # Bounds of the fitted parameters: range[0], range width, lmin, lmax, fpmax.
 _LOWER = np.array([0.0, 1e-3, 0.0, 1.0 + 1e-4, 1e-3])
@@ -197,18 +201,37 @@ class FitResult(dict):
 # ---------------------------------------------------------------------------------------------
 
 
-def _residuals(x, s, ya, yp, ma, mp, a_min) -> np.ndarray:
-    """Residuals (MuJoCo minus OpenSim, in max isometric forces) at activation 1 then at the
-    lowest activation ``a_min`` (OpenSim's minimum activation, 0 for most muscle types), for
-    x = (range[0], range width, lmin, lmax, fpmax) at lengths s (0..1 across the lengthrange)."""
+def _model_forces(x, s, a_min) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's static force (max isometric forces) at activation 1 and at ``a_min``, for x =
+    (range[0], range width, lmin, lmax, fpmax) at lengths s (0..1 across the lengthrange)."""
     r0, w, lmin, lmax, fpmax = x
     L = r0 + s * w
     fp = passive_force(L, lmax, fpmax)
     fl = active_force_length(L, lmin, lmax)
-    return np.concatenate([(fl + fp - ya)[ma], (a_min * fl + fp - yp)[mp]])
+    return fl + fp, a_min * fl + fp
 
 
-def _jacobian(x, s, ya, yp, ma, mp, a_min) -> np.ndarray:
+def _residuals(x, s, ya, yp, ma, mp, a_min, cap) -> np.ndarray:
+    """Residuals (MuJoCo minus OpenSim, in max isometric forces) at activation 1 then at the
+    lowest activation ``a_min`` (OpenSim's minimum activation, 0 for most muscle types), both
+    forces saturated at ``cap`` (:func:`_saturation`)."""
+    fa, fp = _model_forces(x, s, a_min)
+    return np.concatenate([(np.minimum(fa, cap) - np.minimum(ya, cap))[ma],
+                           (np.minimum(fp, cap) - np.minimum(yp, cap))[mp]])
+
+
+def _saturation(ya: np.ndarray, yp: np.ndarray) -> float:
+    """Where the length fit saturates both models' forces (max isometric forces): at
+    :data:`FIT_FORCE_CAP` for a muscle OpenSim pulls harder than that somewhere in its length
+    range, nowhere (inf) for the others. A coordinate range far wider than the joint moves (a
+    free joint's default ±1 m) stretches a muscle to many optimal fiber lengths, where OpenSim's
+    passive force reaches 100 max isometric forces, which MuJoCo's passive curve does not follow;
+    unsaturated, those lengths outweigh the ones the muscle works at."""
+    y = np.concatenate([ya[np.isfinite(ya)], yp[np.isfinite(yp)]])
+    return FIT_FORCE_CAP if y.size and float(np.max(y)) > FIT_FORCE_CAP else math.inf
+
+
+def _jacobian(x, s, ya, yp, ma, mp, a_min, cap) -> np.ndarray:
     """d residuals / d x of :func:`_residuals` (the derivatives of MuJoCo's piecewise curves)."""
     r0, w, lmin, lmax, fpmax = x
     L = r0 + s * w
@@ -232,7 +255,8 @@ def _jacobian(x, s, ya, yp, ma, mp, a_min) -> np.ndarray:
     ja = np.column_stack([dfl_dL + dfp_dL, (dfl_dL + dfp_dL) * s, dfl_dlmin, dfl_dlmax + dfp_dlmax, dfp_dfpmax])
     jp = np.column_stack([a_min * dfl_dL + dfp_dL, (a_min * dfl_dL + dfp_dL) * s, a_min * dfl_dlmin,
                           a_min * dfl_dlmax + dfp_dlmax, dfp_dfpmax])
-    return np.concatenate([ja[ma], jp[mp]])
+    fa, fp = _model_forces(x, s, a_min)  # saturated forces do not move
+    return np.concatenate([ja[ma] * (fa[ma] < cap)[:, None], jp[mp] * (fp[mp] < cap)[:, None]])
 
 
 def _start_point(t: MuscleSample) -> np.ndarray:
@@ -253,7 +277,7 @@ def _fit_length(t: MuscleSample) -> tuple[np.ndarray, np.ndarray, float, float]:
     ya, yp = t.active[idx] / t.force, t.passive[idx] / t.force
     ma, mp = np.isfinite(ya), np.isfinite(yp)
     s = (lengths - t.lengthrange[0]) / max(MJMINVAL, t.lengthrange[1] - t.lengthrange[0])
-    args = (s, ya, yp, ma, mp, t.min_activation)
+    args = (s, ya, yp, ma, mp, t.min_activation, _saturation(ya, yp))
 
     def cost(x):
         r = _residuals(x, *args)
@@ -324,10 +348,12 @@ def _fit_velocity(t: MuscleSample, L0: float) -> tuple[float, float, float]:
 
 
 def _errors(p: MuscleParams, t: MuscleSample) -> None:
-    fa = -mujoco_muscle_force(p, t.lengths, 0.0, 1.0)
-    fp = -mujoco_muscle_force(p, t.lengths, 0.0, p.min_activation)
-    ea = (fa - t.active) / t.force * 100
-    ep = (fp - t.passive) / t.force * 100
+    """``p``'s errors against OpenSim at every evaluated length, forces saturated as the fit's."""
+    cap = _saturation(t.active / t.force, t.passive / t.force)
+    fa = -mujoco_muscle_force(p, t.lengths, 0.0, 1.0) / t.force
+    fp = -mujoco_muscle_force(p, t.lengths, 0.0, p.min_activation) / t.force
+    ea = (np.minimum(fa, cap) - np.minimum(t.active / t.force, cap)) * 100
+    ep = (np.minimum(fp, cap) - np.minimum(t.passive / t.force, cap)) * 100
     ea, ep = ea[np.isfinite(ea)], ep[np.isfinite(ep)]
     p.err_active_max_pct = float(np.max(np.abs(ea))) if ea.size else math.nan
     p.err_active_rms_pct = float(np.sqrt(np.mean(ea**2))) if ea.size else math.nan
@@ -347,6 +373,10 @@ def tendon_damping(t: MuscleSample) -> float:
 
 def _fit_one(t: MuscleSample) -> MuscleParams:
     x, x0, cost, start_cost = _fit_length(t)
+    notes = list(t.notes)
+    if math.isfinite(_saturation(t.active / t.force, t.passive / t.force)):
+        notes.append(f"OpenSim's force passes {FIT_FORCE_CAP:g} max isometric forces within the length range: the "
+                     f"fit and its errors count any force above that as {FIT_FORCE_CAP:g}")
     r0, w, lmin, lmax, fpmax = (float(v) for v in x)
     rng = np.array([r0, r0 + w])
     L0 = (t.lengthrange[1] - t.lengthrange[0]) / w
@@ -355,7 +385,7 @@ def _fit_one(t: MuscleSample) -> MuscleParams:
         name=t.name, type=t.type, force=t.force, timeconst=np.array(t.timeconst, dtype=float), range=rng,
         lmin=lmin, lmax=lmax, vmax=vmax, fpmax=fpmax, fvmax=fvmax, lengthrange=t.lengthrange.copy(),
         err_active_max_pct=math.nan, err_active_rms_pct=math.nan, err_passive_max_pct=math.nan,
-        err_passive_rms_pct=math.nan, notes=list(t.notes), cost=cost, start_cost=start_cost,
+        err_passive_rms_pct=math.nan, notes=notes, cost=cost, start_cost=start_cost,
         start={"range0": float(x0[0]), "range1": float(x0[0] + x0[1]), "lmin": float(x0[2]),
                "lmax": float(x0[3]), "fpmax": float(x0[4])},
         velocity_rms_pct=vel_rms, min_activation=t.min_activation, default_activation=t.default_activation,
