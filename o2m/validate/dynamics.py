@@ -208,7 +208,12 @@ class DynamicsReport:
             unit = "rad" if self.rotational[j] else "m"
             lines.append(f"  {c:<{w}}  {unit:<4}  {mean[j]:9.4f}  {peak[j]:9.4f}  {final[j]:9.4f}  "
                          f"{100 * outside[j]:5.1f}% of samples")
-        lines.append(f"  mean abs error over rotational coordinates: {self.mean_rotational_error():.4f} rad")
+        if self.rotational.any():
+            lines.append(f"  mean abs error over rotational coordinates: {self.mean_rotational_error():.4f} rad")
+        else:  # a model that only translates (its mean over rotations would be NaN)
+            moved = mean[np.isfinite(mean)]
+            lines.append(f"  mean abs error over translational coordinates: "
+                         f"{float(moved.mean()) if moved.size else float('nan'):.4f} m")
         lines.append(f"  MuJoCo paths jumping where OpenSim's do not: {_flip_summary(self.path_flips)}")
         if self.path_jumps_at_opensim_failures:
             lines.append("  ... and where OpenSim's own path winds or loops round a wrap (left out): "

@@ -5,7 +5,6 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import opensim as osim
-import pytest
 
 from o2m.convert.converter import convert
 from tests.helpers import convert_options

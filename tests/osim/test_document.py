@@ -153,3 +153,19 @@ def test_an_unnamed_element_of_an_upgraded_document_keeps_its_line(tmp_path):
     # counts that differ (a 3.x <defaults> entry the upgrade drops) give no line rather than a wrong one
     original.getroot().find("Model").insert(0, etree.fromstring("<defaults><WeldConstraint/></defaults>"))
     assert doc.line_of(second) is None
+
+
+def test_a_3x_document_with_several_plugin_classes_names_them_all(tmp_path):
+    """OpenSim's 3.x upgrade stops at the first class it does not know; the refusal lists every
+    one in the document's sets, so one run tells the user all that is missing."""
+    path = tmp_path / "plugins.osim"
+    path.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n<OpenSimDocument Version="30000">\n<Model name="m">\n'
+        "<ForceSet><objects>\n"
+        '<PistonActuator name="p1"/>\n<ControllableSpring name="s1"/>\n<ControllableSpring name="s2"/>\n'
+        '<CoordinateLimitForce name="ok"/>\n'
+        "</objects></ForceSet>\n</Model>\n</OpenSimDocument>\n")
+    with pytest.raises(ModelFileError) as err:
+        load_document(path)
+    assert "PistonActuator (1), ControllableSpring (2)" in str(err.value)
+    assert "CoordinateLimitForce" not in str(err.value).split("does not know")[-1]

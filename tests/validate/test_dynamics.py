@@ -136,6 +136,8 @@ def test_report_arithmetic_on_known_trajectories():
                       {"tendon": "t2", "trajectory": 1, "mujoco": 0.03},
                       {"tendon": "t1", "trajectory": 1, "mujoco": 0.004}]
     assert "do not: t2 (1 set(s), up to 30.0 mm), t1 (2 set(s), up to 4.0 mm)" in rep.summary()
+    rep.rotational = np.array([False, False])  # a model that only translates: its mean in metres, not NaN rad
+    assert "over translational coordinates: 0.1929 m" in rep.summary() and "nan" not in rep.summary()
 
 
 def test_a_model_without_muscles_is_said_to_run_passive(tmp_path):
