@@ -206,3 +206,43 @@ def add_coupler(model, name: str, independent: str, dependent: str, function) ->
     cc.setDependentCoordinateName(dependent)
     cc.setFunction(function)
     model.addConstraint(cc)
+
+
+def slider_model(name: str, *, gravity: bool = True):
+    """An OpenSim model ``name`` with one 1-kg body on a slider along ground X (range ±0.05 m);
+    returns (model, body). Gravity off with ``gravity`` False."""
+    import opensim as osim
+
+    m = osim.Model()
+    m.setName(name)
+    if not gravity:
+        m.setGravity(osim.Vec3(0))
+    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+    m.addBody(b)
+    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
+    joint.upd_coordinates(0).setRangeMin(-0.05)
+    joint.upd_coordinates(0).setRangeMax(0.05)
+    m.addJoint(joint)
+    return m, b
+
+
+def arm_and_block(name: str, arm_angle: float, block_pose) -> tuple:
+    """An OpenSim model ``name``: a 1-kg arm pinned to ground at ``arm_angle`` (rad about Z) and a
+    0.5-kg block on a free joint at ``block_pose`` (rotations X Y Z in rad, then position in m);
+    returns (model, arm, block), for a test to add the constraint between them."""
+    import opensim as osim
+
+    m = osim.Model()
+    m.setName(name)
+    arm = osim.Body("arm", 1.0, osim.Vec3(0, -0.25, 0), osim.Inertia(0.02, 0.002, 0.02))
+    block = osim.Body("block", 0.5, osim.Vec3(0), osim.Inertia(0.001, 0.002, 0.003))
+    m.addBody(arm)
+    m.addBody(block)
+    pin = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
+    free = osim.FreeJoint("free", m.getGround(), osim.Vec3(0), osim.Vec3(0), block, osim.Vec3(0), osim.Vec3(0))
+    m.addJoint(pin)
+    m.addJoint(free)
+    pin.upd_coordinates(0).setDefaultValue(arm_angle)
+    for i, v in enumerate(block_pose):
+        free.upd_coordinates(i).setDefaultValue(float(v))
+    return m, arm, block

@@ -13,7 +13,7 @@ import pytest
 from o2m import compare_kinematics
 from o2m.convert import convert
 from o2m.transforms import OSIM_TO_MJ
-from tests.helpers import convert_options
+from tests.helpers import arm_and_block, convert_options
 
 DIRECTION = np.array([1.0, 1.0, 0.3]) / np.linalg.norm([1.0, 1.0, 0.3])
 LINE_POINT = np.array([0.1, 0.5, -0.2])
@@ -92,22 +92,10 @@ def _rz(a: float) -> np.ndarray:
 def _pendulum_with(path, kind: str) -> str:
     """An arm pinned to the ground and a free block held to its end by a ``kind`` constraint, the
     default pose satisfying it (OpenSim's and MuJoCo's first poses agree)."""
-    m = osim.Model()
-    m.setName(f"pendulum_{kind}")
-    arm = osim.Body("arm", 1.0, osim.Vec3(0, -0.25, 0), osim.Inertia(0.02, 0.002, 0.02))
-    block = osim.Body("block", 0.5, osim.Vec3(0), osim.Inertia(0.001, 0.002, 0.003))
-    m.addBody(arm)
-    m.addBody(block)
-    pin = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
-    free = osim.FreeJoint("free", m.getGround(), osim.Vec3(0), osim.Vec3(0), block, osim.Vec3(0), osim.Vec3(0))
-    m.addJoint(pin)
-    m.addJoint(free)
-    pin.upd_coordinates(0).setDefaultValue(ARM_ANGLE)
     end = _rz(ARM_ANGLE) @ ARM_POINT
     offset = np.array([0.3, 0.0, 0.0]) if kind == "ConstantDistanceConstraint" else np.zeros(3)
     rot = (0.0, 0.0, ARM_ANGLE) if kind == "WeldConstraint" else (0.0, 0.0, 0.0)
-    for i, v in enumerate((*rot, *(end + offset))):
-        free.upd_coordinates(i).setDefaultValue(float(v))
+    m, arm, block = arm_and_block(f"pendulum_{kind}", ARM_ANGLE, (*rot, *(end + offset)))
     p = osim.Vec3(*ARM_POINT)
     if kind == "WeldConstraint":
         c = osim.WeldConstraint("held", arm, osim.Transform(p), block, osim.Transform())

@@ -12,7 +12,7 @@ import pytest
 
 from o2m.convert import convert
 from o2m.transforms import OSIM_TO_MJ
-from tests.helpers import convert_options
+from tests.helpers import arm_and_block, convert_options
 
 osim.Logger.setLevelString("off")
 
@@ -23,20 +23,8 @@ GAP = np.array([0.08, 0.05, -0.03])  # where the block's default position leaves
 def _open_pendulum(path, kind: str, gap: np.ndarray) -> str:
     """An arm pinned to the ground (0.4 rad) and a free block whose centre a ``kind`` constraint
     holds at the arm's end; the block's default position is ``gap`` away from it."""
-    m = osim.Model()
-    m.setName(f"open_{kind}")
-    arm = osim.Body("arm", 1.0, osim.Vec3(0, -0.25, 0), osim.Inertia(0.02, 0.002, 0.02))
-    block = osim.Body("block", 0.5, osim.Vec3(0), osim.Inertia(0.001, 0.002, 0.003))
-    m.addBody(arm)
-    m.addBody(block)
-    pin = osim.PinJoint("pin", m.getGround(), osim.Vec3(0), osim.Vec3(0), arm, osim.Vec3(0), osim.Vec3(0))
-    free = osim.FreeJoint("free", m.getGround(), osim.Vec3(0), osim.Vec3(0), block, osim.Vec3(0), osim.Vec3(0))
-    m.addJoint(pin)
-    m.addJoint(free)
-    pin.upd_coordinates(0).setDefaultValue(0.4)
     end = np.array([[np.cos(0.4), -np.sin(0.4), 0], [np.sin(0.4), np.cos(0.4), 0], [0, 0, 1]]) @ ARM_POINT
-    for i, v in enumerate((0.0, 0.0, 0.0, *(end + gap))):
-        free.upd_coordinates(i).setDefaultValue(float(v))
+    m, arm, block = arm_and_block(f"open_{kind}", 0.4, (0.0, 0.0, 0.0, *(end + gap)))
     if kind == "PointConstraint":
         c = osim.PointConstraint(arm, osim.Vec3(*ARM_POINT), block, osim.Vec3(0))
     else:

@@ -9,7 +9,7 @@ import opensim as osim
 import pytest
 
 from o2m.convert.converter import convert
-from tests.helpers import convert_options
+from tests.helpers import convert_options, slider_model
 
 FORCE, LOPT, SLACK, ALPHA, DAMPING = 500.0, 0.1, 0.2, 0.3, 0.1
 
@@ -17,15 +17,7 @@ FORCE, LOPT, SLACK, ALPHA, DAMPING = 500.0, 0.1, 0.2, 0.3, 0.1
 def _damped_muscle_model(path, kind: str) -> None:
     """A 1-kg slider pulled along ground X by one rigid-tendon muscle of type ``kind`` with fiber
     damping, its fiber at the optimal length (and pennation) at the slider's zero."""
-    m = osim.Model()
-    m.setName("damped")
-    m.setGravity(osim.Vec3(0))
-    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
-    m.addBody(b)
-    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
-    joint.upd_coordinates(0).setRangeMin(-0.05)
-    joint.upd_coordinates(0).setRangeMax(0.05)
-    m.addJoint(joint)
+    m, b = slider_model("damped", gravity=False)
     mus = getattr(osim, kind)()
     mus.setName("mus")
     mus.set_max_isometric_force(FORCE)

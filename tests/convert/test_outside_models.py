@@ -12,7 +12,7 @@ import pytest
 from o2m import compare_kinematics
 from o2m.convert.converter import convert
 from o2m.errors import UnsupportedElementError
-from tests.helpers import convert_options
+from tests.helpers import convert_options, slider_model
 
 _MUSCLE_PATH = """<GeometryPath name="path"><PathPointSet><objects>
 <PathPoint name="origin"><socket_parent_frame>/hook</socket_parent_frame><location>0 0 0</location></PathPoint>
@@ -125,23 +125,10 @@ def test_path_forces_o2m_does_not_convert_are_listed_as_skipped(tmp_path):
     assert skipped.get(("ClutchedPathSpring", "clutch")) == why and skipped.get(("McKibbenActuator", "mck")) == why
 
 
-def _slider_model(name: str) -> tuple[osim.Model, osim.Body]:
-    """A model named ``name`` with one 1-kg body on a slider along ground X (range ±0.05 m)."""
-    m = osim.Model()
-    m.setName(name)
-    b = osim.Body("b", 1.0, osim.Vec3(0), osim.Inertia(0.01))
-    m.addBody(b)
-    joint = osim.SliderJoint("s", m.getGround(), osim.Vec3(0), osim.Vec3(0), b, osim.Vec3(0), osim.Vec3(0))
-    joint.upd_coordinates(0).setRangeMin(-0.05)
-    joint.upd_coordinates(0).setRangeMax(0.05)
-    m.addJoint(joint)
-    return m, b
-
-
 def test_the_muscle_types_once_skipped_convert(tmp_path):
     """Delp1990Muscle_Deprecated, Thelen2003Muscle_Deprecated and MeyerFregly2016Muscle (once
     listed as skipped) become MuJoCo muscles on their tendons, fitted to OpenSim's forces."""
-    m, b = _slider_model("muscle_types")
+    m, b = slider_model("muscle_types")
     types = ("Delp1990Muscle_Deprecated", "Thelen2003Muscle_Deprecated", "MeyerFregly2016Muscle")
     for i in range(len(types)):
         mus = osim.Thelen2003Muscle(f"m{i}", 200.0, 0.1, 0.2, 0.0)
@@ -173,7 +160,7 @@ def test_the_muscle_types_once_skipped_convert(tmp_path):
 def test_old_type_names_opensim_still_reads_convert_as_their_current_types(tmp_path):
     """A 4.x file may use a type's old name (``<Schutte1993Muscle>``, ``<MuscleViaPoint>``), which
     OpenSim reads as the current type: o2m converts it as OpenSim reads it, not as unknown."""
-    m, b = _slider_model("old_names")
+    m, b = slider_model("old_names")
     mus = osim.Thelen2003Muscle("m", 200.0, 0.1, 0.2, 0.0)  # retyped below (no Python class for Schutte)
     mus.addNewPathPoint("p1", m.getGround(), osim.Vec3(-0.3, 0, 0))
     mus.addNewPathPoint("p2", b, osim.Vec3(0, 0, 0))
@@ -615,8 +602,7 @@ def test_a_path_actuator_pulls_and_a_path_spring_pulls_when_stretched_as_in_open
     a slack-below-rest spring on their paths' tendons. At poses where the spring is stretched and
     where it is slack, with OpenSim's actuation overridden and MuJoCo's ctrl, at rest and gravity
     off, the accelerations agree; the spring's left-out damping is in its approximation."""
-    m, b = _slider_model("path_forces_converted")
-    m.setGravity(osim.Vec3(0))
+    m, b = slider_model("path_forces_converted", gravity=False)
     pa = osim.PathActuator()
     pa.setName("pull")
     pa.setOptimalForce(30.0)
