@@ -22,8 +22,9 @@ moment arms match OpenSim's over sampled poses:
   not change with the others; the best kept), parallel over tendons in a process pool.
 * Variants: a tendon with a split segment (:mod:`o2m.convert.wrap_split`) is fitted once per
   choice of the wraps kept there (:mod:`o2m.convert.wrap_choice`), none of them included; any
-  other tendon whole and straight (its wraps left out); the one nearest OpenSim over all its
-  poses is kept.
+  other tendon whole and straight (its wraps left out); each with its ellipsoids' stand-ins as
+  converted and as the other kind, sphere or cylinder (:mod:`o2m.convert.ellipsoid_standins`);
+  the one nearest OpenSim over all its poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
   start. An ellipsoid stand-in's side site whose leaving out makes the tendon no further from
@@ -44,8 +45,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from o2m.convert.ellipsoid_standins import apply_kinds, best_with_kinds, swap_kinds_xml, swapped_geometry, with_kinds
 from o2m.convert.reduced import reduced_xml, without_unused
-from o2m.convert.wrap_choice import best_variant, drop_from_spec, whole_and_straight, xml_without
+from o2m.convert.wrap_choice import drop_from_spec, whole_and_straight, xml_without
 from o2m.convert.wrap_targets import fit_targets
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
@@ -102,6 +104,9 @@ class PathFit:
     variants: dict[str, dict[str, float]] = field(default_factory=dict)
     #: the start was within :data:`EXACT_OBJECTIVE` of OpenSim: not fitted
     exact: bool = False
+    #: ellipsoid geoms of the kept variant made their other stand-in -> its kind, size and quat
+    #: (:mod:`o2m.convert.ellipsoid_standins`)
+    swapped: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -129,6 +134,7 @@ class _Task:
     variant: str = ""
     dropped: list[str] = field(default_factory=list)
     starts: int = 1
+    swapped: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------------------------
@@ -351,7 +357,7 @@ def _fit_one(task: _Task) -> PathFit:
     values.update({s: {"pos": p.tolist()} for s, p in zip(task.vias, ev.via_positions(best_x), strict=True)})
     return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
                    before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values,
-                   task.variant, list(task.dropped) + unneeded, exact=exact)
+                   task.variant, list(task.dropped) + unneeded, exact=exact, swapped=dict(task.swapped))
 
 
 # --------------------------------------------------------------------------------------------
@@ -401,7 +407,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         tg = targets.get(tendon)
         if tg is None or len(tg["qpos"]) < 2:
             continue
-        for variant in (variants or {}).get(tendon) or whole_and_straight(geoms):
+        for variant in with_kinds((variants or {}).get(tendon) or whole_and_straight(geoms), geoms):
             tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, len(tg["qpos"]) - 1),
                                tendon_seed(seed, tendon), budget, list((vias or {}).get(tendon, [])),
                                int(sizes["starts"] if starts is None else starts)))
@@ -409,7 +415,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     results: dict[str, list[PathFit]] = {}
     for res in fitted:
         results.setdefault(res.tendon, []).append(res)
-    return [best_variant(results[t]) for t in by_tendon if t in results]
+    return [best_with_kinds(results[t]) for t in by_tendon if t in results]
 
 
 def tendon_seed(seed: int, tendon: str) -> int:
@@ -433,17 +439,21 @@ def _task(tendon: str, xml: str, geoms: list[Any], tg: dict[str, Any], variant: 
             pts = pts @ OSIM_TO_MJ.T if g.body == "ground" else pts  # MuJoCo's ground is Z-up
         contacts.append(pts if pts is not None and len(pts) else None)
     named = [g.geom for g in geoms] + [g.sidesite for g in geoms if g.sidesite] + list(vias)
-    task_xml = without_unused(xml_without(reduced_xml(xml, tendon), tendon, dropped), keep=named)
+    swapped = swapped_geometry(geoms, variant.swapped if variant is not None else ())
+    task_xml = swap_kinds_xml(without_unused(xml_without(reduced_xml(xml, tendon), tendon, dropped), keep=named),
+                              swapped)
     return _Task(tendon, task_xml, [g.geom for g in geoms],
                  [g.sidesite for g in geoms], [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
                  n_fit, tg["coordinates"], seed, budget, contacts, [v for v in vias if v not in dropped],
-                 variant.label if variant is not None else "", sorted(dropped), starts)
+                 variant.label if variant is not None else "", sorted(dropped), starts, swapped)
 
 
 def apply_fits(spec: mujoco.MjSpec, fits: Sequence[PathFit], site_exact: dict, geom_exact: dict) -> None:
     """Write accepted fits into ``spec`` and into the exact-value tables the MJCF writer uses, and
-    leave out of it the sites and geoms each tendon's kept variant drops."""
+    leave out of it the sites and geoms each tendon's kept variant drops; an ellipsoid's stand-in
+    the kept variant swapped becomes its other kind, fitted or not."""
     drop_from_spec(spec, {f.tendon: f.dropped for f in fits})
+    apply_kinds(spec, fits, geom_exact)
     for f in fits:
         if not f.accepted:
             continue
