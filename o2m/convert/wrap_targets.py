@@ -55,12 +55,14 @@ def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: 
 
 def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
                 held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
-                n_contact: int = 0, designed: dict[str, list] | None = None
+                n_contact: int = 0, designed: dict[str, list] | None = None, n_arms: int | None = None
                 ) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
     (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
     ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
-    wrap objects named in ``contacts`` (tendon -> wrap names)."""
+    wrap objects named in ``contacts`` (tendon -> wrap names). Poses after the first ``n_arms``
+    (default: every pose) get no moment arms (NaN; each pose's cost two OpenSim assemblies per
+    coordinate and step)."""
     from o2m.mj.posing import joint_qpos_address, resolve_joint_equalities
     from o2m.mj.tendons import coordinate_direction, qpos_to_dof
     from o2m.osim.pair import ModelPair
@@ -96,10 +98,10 @@ def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: 
             values = pair.os_indep_values(state)
             raw = pair.os_lengths(state)
             base = raw + corrections(state)
-            arm = np.zeros((len(names), len(coords)))
+            arm = np.full((len(names), len(coords)), np.nan)
             asm = bool(pair.dependent)
             stepped = {}  # coordinate -> its states at +-10 OS_FD_STEP, which drawn_path_arms reuses
-            for j, c in enumerate(coords):
+            for j, c in enumerate(coords if n_arms is None or len(qpos) < n_arms else []):
                 ma = []
                 for h in (OS_FD_STEP, 10 * OS_FD_STEP):
                     s_up = pair.os_state({**values, c: values[c] + h}, assemble=asm)

@@ -52,10 +52,10 @@ from o2m.convert.wrap_targets import fit_targets
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
 
-#: Poses to fit on and to check on, the CMA-ES evaluation budget per start and the starts per
-#: tendon (full, quick).
-FULL = {"poses": 120, "check": 60, "evals": 1500, "starts": 2}
-QUICK = {"poses": 40, "check": 30, "evals": 400, "starts": 2}
+#: Poses to fit on and to check on, the CMA-ES evaluation budget per start, the starts per tendon
+#: and the poses (lengths only) an ellipsoid's swapped stand-in is validated on (full, quick).
+FULL = {"poses": 120, "check": 60, "evals": 1500, "starts": 2, "validate": 200}
+QUICK = {"poses": 40, "check": 30, "evals": 400, "starts": 2, "validate": 100}
 #: OpenSim wrap objects whose stand-in may start from the sphere or circle fitted to OpenSim's
 #: contact points (their geom is not the object itself).
 CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
@@ -64,6 +64,9 @@ CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
 #: that MuJoCo takes the shorter way and cannot switch where OpenSim does not, between the poses
 #: drawn or beyond a coordinate's range (a sphere's or cylinder's side site is OpenSim's own switch).
 SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
+#: The validation poses are drawn with the fit's seed plus this, apart from its poses and from
+#: :func:`o2m.validate.muscles.compare_muscles`'s (which draws with the seed itself).
+VALIDATION_SEED = 7919
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
 #: A side site is kept at least this many radii from its geom's centre (axis, for a cylinder).
@@ -107,6 +110,8 @@ class PathFit:
     #: ellipsoid geoms of the kept variant made their other stand-in -> its kind, size and quat
     #: (:mod:`o2m.convert.ellipsoid_standins`)
     swapped: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: errors after, on the validation poses (lengths only; empty without them)
+    valid_after: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -135,6 +140,7 @@ class _Task:
     dropped: list[str] = field(default_factory=list)
     starts: int = 1
     swapped: dict[str, dict[str, Any]] = field(default_factory=dict)
+    n_valid: int = 0  # the last rows of qpos: validation poses, lengths only
 
 
 # --------------------------------------------------------------------------------------------
@@ -320,7 +326,8 @@ def _fit_one(task: _Task) -> PathFit:
 
     t0 = time.perf_counter()
     ev = _Evaluator(task)
-    fit, check = slice(0, task.n_fit), slice(task.n_fit, len(task.qpos))
+    n_arms = len(task.qpos) - task.n_valid
+    fit, check, valid = slice(0, task.n_fit), slice(task.n_fit, n_arms), slice(n_arms, len(task.qpos))
     x0 = np.zeros(ev.n_params)
     f0 = ev.objective(x0, fit)
     exact = f0 <= EXACT_OBJECTIVE and ev.objective(x0, check) <= EXACT_OBJECTIVE
@@ -350,14 +357,15 @@ def _fit_one(task: _Task) -> PathFit:
                     and after["len_max_pct"] <= before["len_max_pct"] and ca["len_max_pct"] <= cb["len_max_pct"])
     if not accepted:
         best_x, after, ca = x0, before, cb
-    unneeded = ev.unneeded_side_sites(best_x, slice(0, len(task.qpos)))
+    unneeded = ev.unneeded_side_sites(best_x, slice(0, n_arms))
     pos, rad, side = ev.values(best_x)
     values = {g: {"pos": pos[k].tolist(), "radius": [float(rad[k])]} for k, g in enumerate(task.geoms)}
     values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites) if s and s not in unneeded})
     values.update({s: {"pos": p.tolist()} for s, p in zip(task.vias, ev.via_positions(best_x), strict=True)})
     return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
                    before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values,
-                   task.variant, list(task.dropped) + unneeded, exact=exact, swapped=dict(task.swapped))
+                   task.variant, list(task.dropped) + unneeded, exact=exact, swapped=dict(task.swapped),
+                   valid_after=ev.summary(best_x, valid) if task.n_valid else {})
 
 
 # --------------------------------------------------------------------------------------------
@@ -390,6 +398,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     n_fit = int(n_poses or sizes["poses"])
     n_check = max(10, n_fit // 2) if n_poses else sizes["check"]
     budget = int(sizes["evals"] if evals is None else evals)
+    n_valid = int(sizes["validate"]) if any(g.alternative for g in path_geoms) else 0
     by_tendon: dict[str, list[Any]] = {}
     for g in path_geoms:
         by_tendon.setdefault(g.tendon, []).append(g)
@@ -401,14 +410,18 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
             fh.write(reduced_xml(xml))
         ellipsoids = {t: {g.source for g in gs if g.kind in CONTACT_KINDS} for t, gs in by_tendon.items()}
         _, targets = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
-                              ellipsoids, n_fit, designed)
+                                 ellipsoids, n_fit, designed)
+        if n_valid:
+            _, extra = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_valid, seed + VALIDATION_SEED,
+                                   held, None, 0, designed, n_arms=0)
+            targets = with_validation(targets, extra)
     tasks = []
     for tendon, geoms in by_tendon.items():
         tg = targets.get(tendon)
-        if tg is None or len(tg["qpos"]) < 2:
+        if tg is None or tg.get("n_arms", len(tg["qpos"])) < 2:
             continue
         for variant in with_kinds((variants or {}).get(tendon) or whole_and_straight(geoms), geoms):
-            tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, len(tg["qpos"]) - 1),
+            tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, tg.get("n_arms", len(tg["qpos"])) - 1),
                                tendon_seed(seed, tendon), budget, list((vias or {}).get(tendon, [])),
                                int(sizes["starts"] if starts is None else starts)))
     fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
@@ -416,6 +429,20 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     for res in fitted:
         results.setdefault(res.tendon, []).append(res)
     return [best_with_kinds(results[t]) for t in by_tendon if t in results]
+
+
+def with_validation(targets: dict[str, dict], extra: dict[str, dict]) -> dict[str, dict]:
+    """Each tendon's targets with the poses of ``extra`` (lengths only, NaN moment arms) appended
+    as validation rows; ``n_arms`` counts the rows before them."""
+    out = {}
+    for t, tg in targets.items():
+        more = extra.get(t)
+        if more is None or not len(more["qpos"]):
+            out[t] = tg
+            continue
+        joined = {k: np.concatenate([tg[k], more[k]]) for k in ("qpos", "dv", "length", "arm")}
+        out[t] = {**tg, **joined, "n_arms": len(tg["qpos"])}
+    return out
 
 
 def tendon_seed(seed: int, tendon: str) -> int:
@@ -445,7 +472,8 @@ def _task(tendon: str, xml: str, geoms: list[Any], tg: dict[str, Any], variant: 
     return _Task(tendon, task_xml, [g.geom for g in geoms],
                  [g.sidesite for g in geoms], [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
                  n_fit, tg["coordinates"], seed, budget, contacts, [v for v in vias if v not in dropped],
-                 variant.label if variant is not None else "", sorted(dropped), starts, swapped)
+                 variant.label if variant is not None else "", sorted(dropped), starts, swapped,
+                 len(tg["qpos"]) - tg.get("n_arms", len(tg["qpos"])))
 
 
 def apply_fits(spec: mujoco.MjSpec, fits: Sequence[PathFit], site_exact: dict, geom_exact: dict) -> None:
