@@ -169,8 +169,9 @@ def apply_kinds(spec: mujoco.MjSpec, fits: Sequence[Any], geom_exact: dict) -> N
 
 def record_errors(approximations: list, fits: Sequence[Any], geoms: Sequence[Any]) -> None:
     """Give each WrapEllipsoid approximation the worst length error (%) against OpenSim, at the
-    wrap fit's poses, of the paths over it (also where the fit left it out), and the stand-in
-    each path kept; its geometric gap (m) stays in the description."""
+    wrap fit's fitting and check poses (OpenSim's own failures left out), of the paths over it
+    (also where the fit left it out), and the stand-in each path kept; its geometric gap (m)
+    stays in the description."""
     kept = {f.tendon: f for f in fits}
     for a in approximations:
         users = [g for g in geoms if g.source == a.name and g.tendon in kept]
@@ -185,7 +186,7 @@ def record_errors(approximations: list, fits: Sequence[Any], geoms: Sequence[Any
         per = "; ".join(f"{k}: {', '.join(ts)}" for k, ts in sorted(kinds.items()))
         a.what = f"{a.what} (surfaces up to {a.max_error:.3g} m apart); per path after the wrap fit ({per})"
         a.max_error, a.units = worst, "%"
-        a.detail = "worst length error of its paths against OpenSim at the wrap fit's poses"
+        a.detail = "worst length error of its paths against OpenSim at the wrap fit's and check poses"
 
 
 __all__ = ["ELONGATED", "SET_TOLERANCE", "SWAP_GAIN", "apply_kinds", "best_with_kinds", "first_kind", "record_errors",

@@ -23,8 +23,9 @@ moment arms match OpenSim's over sampled poses:
 * Variants: a tendon with a split segment (:mod:`o2m.convert.wrap_split`) is fitted once per
   choice of the wraps kept there (:mod:`o2m.convert.wrap_choice`), none of them included; any
   other tendon whole and straight (its wraps left out); each with its ellipsoids' stand-ins as
-  converted and as the other kind, sphere or cylinder (:mod:`o2m.convert.ellipsoid_standins`);
-  the one nearest OpenSim over all its poses is kept.
+  converted and as the other kind, sphere or cylinder (:mod:`o2m.convert.ellipsoid_standins`,
+  which also judges a swap on validation poses of OpenSim's lengths, drawn apart); the one
+  nearest OpenSim over all its poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
   start. An ellipsoid stand-in's side site whose leaving out makes the tendon no further from
@@ -391,8 +392,10 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     tendon's geoms (:mod:`o2m.convert.wrap_split`'s); ``variants`` (tendon -> its
     :class:`o2m.convert.wrap_choice.PathVariant` s) the choices of wraps fitted for a tendon (any
     other: whole and straight, :func:`~o2m.convert.wrap_choice.whole_and_straight`), the one
-    with the smallest objective over all its poses kept. Each tendon's CMA-ES seed follows from
-    ``seed`` and its name alone. Returns one :class:`PathFit` per tendon, in ``path_geoms`` order.
+    with the smallest objective over all its poses kept (an ellipsoid's swapped stand-in also
+    checked on the ``validate`` extra poses of :data:`QUICK` / :data:`FULL`). Each tendon's CMA-ES
+    seed follows from ``seed`` and its name alone. Returns one :class:`PathFit` per tendon, in
+    ``path_geoms`` order.
     """
     sizes = QUICK if quick else FULL
     n_fit = int(n_poses or sizes["poses"])
