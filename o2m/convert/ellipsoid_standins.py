@@ -103,23 +103,23 @@ def with_kinds(variants: Sequence[PathVariant], geoms: Sequence[Any]) -> list[Pa
 def best_with_kinds(fits: list[Any]) -> Any:
     """Of one tendon's fitted variants (:class:`o2m.convert.wrapfit.PathFit` s), the one
     :func:`~o2m.convert.wrap_choice.best_variant` keeps; one with a swapped stand-in only where,
-    against the best of those without, it is nearer OpenSim over the fitting and check poses and
-    no further on either, nor on the validation poses (:func:`_no_worse_on_either`): a choice
-    among more variants over few poses otherwise keeps one that fits them by chance (MoBL-ARMS's
+    against the best of those without, it is clearly nearer OpenSim over all its poses and no
+    further on any of its pose sets, the validation poses among them (:func:`_clearly_better`):
+    a choice among more variants over few poses otherwise keeps one that fits them by chance (MoBL-ARMS's
     PECM1, quick: its PEC1hh ellipsoid as a cylinder, 23.2 % over the fit's 70 poses against
     26.7 % straight, was 26.9 % over 100 other poses against 15.6 %)."""
     best = best_variant(fits)
     plain = [f for f in fits if not f.swapped]
     if best.swapped and plain:
         base = best_variant(plain)
-        if base.exact or not _no_worse_on_either(best, base):  # exact: within OpenSim's noise already
+        if base.exact or not _clearly_better(best, base):  # exact: within OpenSim's noise already
             best = base
     if len(fits) > 1:
         best.variants = variant_errors(fits)
     return best
 
 
-def _no_worse_on_either(a: Any, b: Any) -> bool:
+def _clearly_better(a: Any, b: Any) -> bool:
     """Fit ``a`` has an objective (mm²) at least :data:`SWAP_GAIN` lower than ``b``'s over all
     poses (fitting, check and validation), on each set at most :data:`SET_TOLERANCE` above it,
     and no larger worst length error on any."""
