@@ -105,9 +105,9 @@ def best_with_kinds(fits: list[Any]) -> Any:
     :func:`~o2m.convert.wrap_choice.best_variant` keeps; one with a swapped stand-in only where,
     against the best of those without, it is clearly nearer OpenSim over all its poses and no
     further on any of its pose sets, the validation poses among them (:func:`_clearly_better`):
-    a choice among more variants over few poses otherwise keeps one that fits them by chance (MoBL-ARMS's
-    PECM1, quick: its PEC1hh ellipsoid as a cylinder, 23.2 % over the fit's 70 poses against
-    26.7 % straight, was 26.9 % over 100 other poses against 15.6 %)."""
+    a choice among more variants over few poses otherwise keeps one that fits them by chance
+    (MoBL-ARMS's PECM1, quick: its PEC1hh ellipsoid as a cylinder, 23.2 % over the fit's 70 poses
+    against 26.7 % straight, was 26.9 % over 100 other poses against 15.6 %)."""
     best = best_variant(fits)
     plain = [f for f in fits if not f.swapped]
     if best.swapped and plain:
