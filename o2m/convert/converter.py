@@ -28,6 +28,7 @@ from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.constraints import add_constraints
 from o2m.convert.coordinates import unenforced_clamps
 from o2m.convert.default_pose import assembled_pose
+from o2m.convert.ellipsoid_standins import record_errors
 from o2m.convert.islands import disable_single_island
 from o2m.convert.lengthvia import add_length_vias
 from o2m.convert.massless import check_massless
@@ -194,6 +195,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
                              designed=designed, vias=split_sites(splits),
                              variants=split_variants(splits, tendons.path_geoms))
             apply_fits(spec, fits, builder.exact, tendons.exact)
+            record_errors(result.approximations, fits, tendons.path_geoms)
             describe_kept(splits, {f.tendon: set(f.dropped) for f in fits},
                           {(g.tendon, g.source): g.geom for g in tendons.path_geoms})
             model = spec.compile()

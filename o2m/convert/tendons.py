@@ -125,7 +125,8 @@ class TendonBuilder:
             side = self.wrap_geoms.side_site(wrap, geom, sites_ground[seg], sites_ground[seg + 1])
             on_segment[sseg] = (geom, side)
             self.path_geoms.append(PathGeom(path.owner, geom, side, "Wrap" + wrap.kind.capitalize(), wrap.name,
-                                            wrap.body))
+                                            wrap.body, self.wrap_geoms.geom_frames[geom][1],
+                                            self.wrap_geoms.alternatives.get(geom)))
         return on_segment
 
     def _add_tendon(self, path: Path, sites: list[str], runs: list[list[str]],

@@ -41,10 +41,12 @@ NO_WRAP = "straight"
 @dataclass(frozen=True)
 class PathVariant:
     """One choice of wraps for a tendon: ``label`` names the kept wraps per split segment
-    (OpenSim names), ``dropped`` the MuJoCo sites and geoms (side sites included) left out."""
+    (OpenSim names), ``dropped`` the MuJoCo sites and geoms (side sites included) left out,
+    ``swapped`` the ellipsoid geoms made their other stand-in (:mod:`o2m.convert.ellipsoid_standins`)."""
 
     label: str
     dropped: frozenset[str]
+    swapped: frozenset[str] = frozenset()
 
 
 def _segment_runs(rec: Any, geoms: dict[str, tuple[str, str]]) -> list[tuple[str, frozenset[str]]]:
@@ -145,8 +147,13 @@ def best_variant(fits: list[Any]) -> Any:
     # poses may act at others
     best = min(eligible, key=_overall)
     if len(fits) > 1:
-        best.variants = {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
+        best.variants = variant_errors(fits)
     return best
+
+
+def variant_errors(fits: list[Any]) -> dict[str, dict[str, float]]:
+    """Each fitted variant's objective (mm²) and worst length error (%) over all its poses."""
+    return {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
 
 
 #: MjsTendon attributes that are no setting of its own.
@@ -209,4 +216,4 @@ def _save(tendon: Any, dropped: set[str]) -> tuple[str, dict[str, Any], list[tup
 
 
 __all__ = ["MAX_VARIANTS", "NO_WRAP", "VARIANT_PCT_FACTOR", "VARIANT_PCT_MARGIN", "PathVariant", "best_variant",
-           "drop_from_spec", "split_variants", "whole_and_straight", "xml_without"]
+           "drop_from_spec", "variant_errors", "split_variants", "whole_and_straight", "xml_without"]

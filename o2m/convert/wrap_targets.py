@@ -55,12 +55,16 @@ def _designed_correction(pair: Any, state: Any, designed: dict[str, list], col: 
 
 def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: int, seed: int,
                 held: dict[str, dict] | None = None, contacts: dict[str, set[str]] | None = None,
-                n_contact: int = 0, designed: dict[str, list] | None = None
+                n_contact: int = 0, designed: dict[str, list] | None = None, n_arms: int | None = None
                 ) -> tuple[Any, dict[str, dict[str, Any]]]:
     """Sample poses; return the MuJoCo model and per tendon the qpos, dv, lengths and moment arms
     (of the held tendon, for the paths in ``held``; of the designed length, for the paths in
     ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
-    wrap objects named in ``contacts`` (tendon -> wrap names)."""
+    wrap objects named in ``contacts`` (tendon -> wrap names). Poses after the first ``n_arms``
+    (default: every pose) get lengths only: no moment arms (NaN; each pose's cost two OpenSim
+    assemblies per coordinate and step) and no tests of OpenSim's own failures (several
+    assemblies per suspect; a model whose paths are far from OpenSim has many): for comparing two
+    stand-ins on the same lengths, not as targets."""
     from o2m.mj.posing import joint_qpos_address, resolve_joint_equalities
     from o2m.mj.tendons import coordinate_direction, qpos_to_dof
     from o2m.osim.pair import ModelPair
@@ -96,10 +100,11 @@ def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: 
             values = pair.os_indep_values(state)
             raw = pair.os_lengths(state)
             base = raw + corrections(state)
-            arm = np.zeros((len(names), len(coords)))
+            arm = np.full((len(names), len(coords)), np.nan)
             asm = bool(pair.dependent)
             stepped = {}  # coordinate -> its states at +-10 OS_FD_STEP, which drawn_path_arms reuses
-            for j, c in enumerate(coords):
+            lengths_only = n_arms is not None and len(qpos) >= n_arms
+            for j, c in enumerate([] if lengths_only else coords):
                 ma = []
                 for h in (OS_FD_STEP, 10 * OS_FD_STEP):
                     s_up = pair.os_state({**values, c: values[c] + h}, assemble=asm)
@@ -120,7 +125,7 @@ def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: 
         err = np.abs(converted - base)
         suspects = wanted_idx[err[wanted_idx] > SPIKE_TOL]
         banded = np.intersect1d(band_suspects(converted, base), wanted_idx)
-        for i in opensim_failures(pair, values, suspects, raw, banded):
+        for i in [] if lengths_only else opensim_failures(pair, values, suspects, raw, banded):
             ok[i] = False
         # a wrap arc OpenSim draws with non-finite points (MoBL_ARMS_model_for_mujoco.osim's DELT3 at
         # one pose of the full fit's): no target, and one NaN would spread to every pose's

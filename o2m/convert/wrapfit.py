@@ -22,8 +22,10 @@ moment arms match OpenSim's over sampled poses:
   not change with the others; the best kept), parallel over tendons in a process pool.
 * Variants: a tendon with a split segment (:mod:`o2m.convert.wrap_split`) is fitted once per
   choice of the wraps kept there (:mod:`o2m.convert.wrap_choice`), none of them included; any
-  other tendon whole and straight (its wraps left out); the one nearest OpenSim over all its
-  poses is kept.
+  other tendon whole and straight (its wraps left out); each with its ellipsoids' stand-ins as
+  converted and as the other kind, sphere or cylinder (:mod:`o2m.convert.ellipsoid_standins`,
+  which also judges a swap on validation poses of OpenSim's lengths, drawn apart); the one
+  nearest OpenSim over all its poses is kept.
 * A fit is accepted only when it lowers the objective both on the fitting poses and on separate
   check poses, and raises the worst length error on neither; otherwise the tendon keeps its
   start. An ellipsoid stand-in's side site whose leaving out makes the tendon no further from
@@ -44,16 +46,17 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from o2m.convert.ellipsoid_standins import apply_kinds, best_with_kinds, swap_kinds_xml, swapped_geometry, with_kinds
 from o2m.convert.reduced import reduced_xml, without_unused
-from o2m.convert.wrap_choice import best_variant, drop_from_spec, whole_and_straight, xml_without
+from o2m.convert.wrap_choice import drop_from_spec, whole_and_straight, xml_without
 from o2m.convert.wrap_targets import fit_targets
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
 
-#: Poses to fit on and to check on, the CMA-ES evaluation budget per start and the starts per
-#: tendon (full, quick).
-FULL = {"poses": 120, "check": 60, "evals": 1500, "starts": 2}
-QUICK = {"poses": 40, "check": 30, "evals": 400, "starts": 2}
+#: Poses to fit on and to check on, the CMA-ES evaluation budget per start, the starts per tendon
+#: and the poses (lengths only) an ellipsoid's swapped stand-in is validated on (full, quick).
+FULL = {"poses": 120, "check": 60, "evals": 1500, "starts": 2, "validate": 200}
+QUICK = {"poses": 40, "check": 30, "evals": 400, "starts": 2, "validate": 100}
 #: OpenSim wrap objects whose stand-in may start from the sphere or circle fitted to OpenSim's
 #: contact points (their geom is not the object itself).
 CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
@@ -62,6 +65,9 @@ CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
 #: that MuJoCo takes the shorter way and cannot switch where OpenSim does not, between the poses
 #: drawn or beyond a coordinate's range (a sphere's or cylinder's side site is OpenSim's own switch).
 SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
+#: The validation poses are drawn with the fit's seed plus this, apart from its poses and from
+#: :func:`o2m.validate.muscles.compare_muscles`'s (which draws with the seed itself).
+VALIDATION_SEED = 7919
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
 #: A side site is kept at least this many radii from its geom's centre (axis, for a cylinder).
@@ -102,6 +108,11 @@ class PathFit:
     variants: dict[str, dict[str, float]] = field(default_factory=dict)
     #: the start was within :data:`EXACT_OBJECTIVE` of OpenSim: not fitted
     exact: bool = False
+    #: ellipsoid geoms of the kept variant made their other stand-in -> its kind, size and quat
+    #: (:mod:`o2m.convert.ellipsoid_standins`)
+    swapped: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: errors after, on the validation poses (lengths only; empty without them)
+    valid_after: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -129,6 +140,8 @@ class _Task:
     variant: str = ""
     dropped: list[str] = field(default_factory=list)
     starts: int = 1
+    swapped: dict[str, dict[str, Any]] = field(default_factory=dict)
+    n_valid: int = 0  # the last rows of qpos: validation poses, lengths only
 
 
 # --------------------------------------------------------------------------------------------
@@ -314,7 +327,8 @@ def _fit_one(task: _Task) -> PathFit:
 
     t0 = time.perf_counter()
     ev = _Evaluator(task)
-    fit, check = slice(0, task.n_fit), slice(task.n_fit, len(task.qpos))
+    n_arms = len(task.qpos) - task.n_valid
+    fit, check, valid = slice(0, task.n_fit), slice(task.n_fit, n_arms), slice(n_arms, len(task.qpos))
     x0 = np.zeros(ev.n_params)
     f0 = ev.objective(x0, fit)
     exact = f0 <= EXACT_OBJECTIVE and ev.objective(x0, check) <= EXACT_OBJECTIVE
@@ -344,14 +358,15 @@ def _fit_one(task: _Task) -> PathFit:
                     and after["len_max_pct"] <= before["len_max_pct"] and ca["len_max_pct"] <= cb["len_max_pct"])
     if not accepted:
         best_x, after, ca = x0, before, cb
-    unneeded = ev.unneeded_side_sites(best_x, slice(0, len(task.qpos)))
+    unneeded = ev.unneeded_side_sites(best_x, slice(0, n_arms))
     pos, rad, side = ev.values(best_x)
     values = {g: {"pos": pos[k].tolist(), "radius": [float(rad[k])]} for k, g in enumerate(task.geoms)}
     values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites) if s and s not in unneeded})
     values.update({s: {"pos": p.tolist()} for s, p in zip(task.vias, ev.via_positions(best_x), strict=True)})
     return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
                    before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values,
-                   task.variant, list(task.dropped) + unneeded, exact=exact)
+                   task.variant, list(task.dropped) + unneeded, exact=exact, swapped=dict(task.swapped),
+                   valid_after=ev.summary(best_x, valid) if task.n_valid else {})
 
 
 # --------------------------------------------------------------------------------------------
@@ -377,13 +392,16 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     tendon's geoms (:mod:`o2m.convert.wrap_split`'s); ``variants`` (tendon -> its
     :class:`o2m.convert.wrap_choice.PathVariant` s) the choices of wraps fitted for a tendon (any
     other: whole and straight, :func:`~o2m.convert.wrap_choice.whole_and_straight`), the one
-    with the smallest objective over all its poses kept. Each tendon's CMA-ES seed follows from
-    ``seed`` and its name alone. Returns one :class:`PathFit` per tendon, in ``path_geoms`` order.
+    with the smallest objective over all its poses kept (an ellipsoid's swapped stand-in also
+    checked on the ``validate`` extra poses of :data:`QUICK` / :data:`FULL`). Each tendon's CMA-ES
+    seed follows from ``seed`` and its name alone. Returns one :class:`PathFit` per tendon, in
+    ``path_geoms`` order.
     """
     sizes = QUICK if quick else FULL
     n_fit = int(n_poses or sizes["poses"])
     n_check = max(10, n_fit // 2) if n_poses else sizes["check"]
     budget = int(sizes["evals"] if evals is None else evals)
+    n_valid = int(sizes["validate"]) if any(g.alternative for g in path_geoms) else 0
     by_tendon: dict[str, list[Any]] = {}
     for g in path_geoms:
         by_tendon.setdefault(g.tendon, []).append(g)
@@ -395,21 +413,39 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
             fh.write(reduced_xml(xml))
         ellipsoids = {t: {g.source for g in gs if g.kind in CONTACT_KINDS} for t, gs in by_tendon.items()}
         _, targets = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
-                              ellipsoids, n_fit, designed)
+                                 ellipsoids, n_fit, designed)
+        if n_valid:
+            _, extra = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_valid, seed + VALIDATION_SEED,
+                                   held, None, 0, designed, n_arms=0)
+            targets = with_validation(targets, extra)
     tasks = []
     for tendon, geoms in by_tendon.items():
         tg = targets.get(tendon)
-        if tg is None or len(tg["qpos"]) < 2:
+        if tg is None or tg.get("n_arms", len(tg["qpos"])) < 2:
             continue
-        for variant in (variants or {}).get(tendon) or whole_and_straight(geoms):
-            tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, len(tg["qpos"]) - 1),
+        for variant in with_kinds((variants or {}).get(tendon) or whole_and_straight(geoms), geoms):
+            tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, tg.get("n_arms", len(tg["qpos"])) - 1),
                                tendon_seed(seed, tendon), budget, list((vias or {}).get(tendon, [])),
                                int(sizes["starts"] if starts is None else starts)))
     fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
     results: dict[str, list[PathFit]] = {}
     for res in fitted:
         results.setdefault(res.tendon, []).append(res)
-    return [best_variant(results[t]) for t in by_tendon if t in results]
+    return [best_with_kinds(results[t]) for t in by_tendon if t in results]
+
+
+def with_validation(targets: dict[str, dict], extra: dict[str, dict]) -> dict[str, dict]:
+    """Each tendon's targets with the poses of ``extra`` (lengths only, NaN moment arms) appended
+    as validation rows; ``n_arms`` counts the rows before them."""
+    out = {}
+    for t, tg in targets.items():
+        more = extra.get(t)
+        if more is None or not len(more["qpos"]):
+            out[t] = tg
+            continue
+        joined = {k: np.concatenate([tg[k], more[k]]) for k in ("qpos", "dv", "length", "arm")}
+        out[t] = {**tg, **joined, "n_arms": len(tg["qpos"])}
+    return out
 
 
 def tendon_seed(seed: int, tendon: str) -> int:
@@ -433,17 +469,22 @@ def _task(tendon: str, xml: str, geoms: list[Any], tg: dict[str, Any], variant: 
             pts = pts @ OSIM_TO_MJ.T if g.body == "ground" else pts  # MuJoCo's ground is Z-up
         contacts.append(pts if pts is not None and len(pts) else None)
     named = [g.geom for g in geoms] + [g.sidesite for g in geoms if g.sidesite] + list(vias)
-    task_xml = without_unused(xml_without(reduced_xml(xml, tendon), tendon, dropped), keep=named)
+    swapped = swapped_geometry(geoms, variant.swapped if variant is not None else ())
+    task_xml = swap_kinds_xml(without_unused(xml_without(reduced_xml(xml, tendon), tendon, dropped), keep=named),
+                              swapped)
     return _Task(tendon, task_xml, [g.geom for g in geoms],
                  [g.sidesite for g in geoms], [g.kind for g in geoms], tg["qpos"], tg["dv"], tg["length"], tg["arm"],
                  n_fit, tg["coordinates"], seed, budget, contacts, [v for v in vias if v not in dropped],
-                 variant.label if variant is not None else "", sorted(dropped), starts)
+                 variant.label if variant is not None else "", sorted(dropped), starts, swapped,
+                 len(tg["qpos"]) - tg.get("n_arms", len(tg["qpos"])))
 
 
 def apply_fits(spec: mujoco.MjSpec, fits: Sequence[PathFit], site_exact: dict, geom_exact: dict) -> None:
     """Write accepted fits into ``spec`` and into the exact-value tables the MJCF writer uses, and
-    leave out of it the sites and geoms each tendon's kept variant drops."""
+    leave out of it the sites and geoms each tendon's kept variant drops; an ellipsoid's stand-in
+    the kept variant swapped becomes its other kind, fitted or not."""
     drop_from_spec(spec, {f.tendon: f.dropped for f in fits})
+    apply_kinds(spec, fits, geom_exact)
     for f in fits:
         if not f.accepted:
             continue

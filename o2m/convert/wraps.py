@@ -1,13 +1,13 @@
 """Wrap objects: a MuJoCo wrap geom, with a side site, for each path that uses one.
 
 Wrap objects become wrap geoms, one per path that uses them (so :mod:`o2m.convert.wrapfit` can fit
-each path's own): spheres and cylinders as they are; an ellipsoid as the sphere or cylinder
-nearest to it; a torus as the cylinder OpenSim wraps over at the reference pose
-(:func:`torus_cylinder`). Each is placed on the path segment (within the wrap's
-OpenSim range) that passes closest to it at the reference pose, with a side site on the side
-that segment passes or that the quadrant names (MuJoCo 4.0: the tendon wraps the way the
-straight path through the side site goes). Sizes are metres; on ground, OpenSim's Y-up frame is
-mapped to MuJoCo's Z-up.
+each path's own): spheres and cylinders as they are; an ellipsoid as a sphere or a cylinder,
+the wrap fit keeping per path the one nearer OpenSim (:mod:`o2m.convert.ellipsoid_standins`); a
+torus as the cylinder OpenSim wraps over at the reference pose (:func:`torus_cylinder`). Each is
+placed on the path segment (within the wrap's OpenSim range) that passes closest to it at the
+reference pose, with a side site on the side that segment passes or that the quadrant names
+(MuJoCo 4.0: the tendon wraps the way the straight path through the side site goes). Sizes are
+metres; on ground, OpenSim's Y-up frame is mapped to MuJoCo's Z-up.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from o2m.convert.ellipsoid_standins import first_kind, standins
 from o2m.convert.pathpoints import PathContext
 from o2m.convert.records import Approximation
 from o2m.mj import mjcf_text
@@ -38,7 +39,9 @@ class _PlacedWrap:
 class PathGeom:
     """A wrap geom of one tendon (MuJoCo names), for :mod:`o2m.convert.wrapfit`: ``kind`` is the OpenSim
     element it stands for (``WrapSphere``, ``WrapCylinder`` or ``WrapEllipsoid``; a
-    ConditionalPathPoint's sphere is not fitted), ``source`` its OpenSim name and ``body`` the OpenSim body it is on."""
+    ConditionalPathPoint's sphere is not fitted), ``source`` its OpenSim name and ``body`` the OpenSim body it is on;
+    ``kind_mj`` the MuJoCo geom type it starts as and, for an ellipsoid, ``alternative`` its other
+    stand-in (kind, size, quat; :mod:`o2m.convert.ellipsoid_standins`), which the wrap fit tries too."""
 
     tendon: str
     geom: str
@@ -46,6 +49,8 @@ class PathGeom:
     kind: str
     source: str
     body: str = ""
+    kind_mj: str = ""
+    alternative: dict | None = None
 
 
 class WrapGeoms:
@@ -58,6 +63,8 @@ class WrapGeoms:
         self.geoms: dict[str, str | None] = {}  # wrap object -> MuJoCo geom name (None: not converted)
         #: geom name -> (its frame in its OpenSim body, MuJoCo kind, radius)
         self.geom_frames: dict[str, tuple[Transform, str, float]] = {}
+        #: ellipsoid geom name -> its other stand-in (:mod:`o2m.convert.ellipsoid_standins`)
+        self.alternatives: dict[str, dict] = {}
 
     def geom(self, wrap: WrapObject, a: np.ndarray | None = None, b: np.ndarray | None = None) -> str | None:
         """A new MuJoCo geom for a wrap object (each path gets its own, so fitting one path's wrap
@@ -82,23 +89,7 @@ class WrapGeoms:
         elif kind == "cylinder":
             size = [wrap.radius, max(wrap.length, 1e-6) / 2, 0]
         elif kind == "ellipsoid":
-            d = np.asarray(wrap.dimensions, dtype=float)
-            order = np.argsort(d)
-            if d[order[2]] > 1.5 * d[order[1]]:  # elongated: a cylinder along its long axis
-                kind, r = "cylinder", float((d[order[0]] + d[order[1]]) / 2)
-                size = [r, float(d[order[2]]), 0]
-                long_axis = np.eye(3)[order[2]]
-                extra_rot = _rotation_taking_z_to(long_axis)
-                what = f"ellipsoid {d.tolist()} wrapped as a cylinder of radius {r:.4g} m"
-                err = float(np.max(np.abs(d[order[:2]] - r)))
-            else:
-                kind, r = "sphere", float(d.mean())
-                size = [r, 0, 0]
-                what = f"ellipsoid {d.tolist()} wrapped as a sphere of radius {r:.4g} m"
-                err = float(np.max(np.abs(d - r)))
-            if first_use:
-                self.b.result.approximations.append(Approximation("WrapEllipsoid", wrap.name, what, err, "m",
-                                                                  "largest semi-axis difference"))
+            kind, size, extra_rot = self._ellipsoid(wrap, first_use)
         x = x @ Transform(extra_rot)
         name = self.ctx.unique(f"wrap_{wrap.name}")
         gtype = mujoco.mjtGeom.mjGEOM_SPHERE if kind == "sphere" else mujoco.mjtGeom.mjGEOM_CYLINDER
@@ -110,7 +101,28 @@ class WrapGeoms:
                                                              dtype=float)}
         self.geoms[wrap.name] = name
         self.geom_frames[name] = (frame @ Transform(extra_rot), kind, float(size[0]))
+        if wrap.kind == "ellipsoid":
+            self.alternatives[name] = self._alternative(wrap, kind)
         return name
+
+    def _ellipsoid(self, wrap: WrapObject, first_use: bool) -> tuple[str, list[float], np.ndarray]:
+        """The stand-in an ellipsoid starts as (MuJoCo kind, size, rotation from its frame), its
+        approximation recorded on first use (the wrap fit measures it against OpenSim)."""
+        kind = first_kind(wrap.dimensions)
+        size, rot, gap, what = standins(wrap.dimensions)[kind]
+        if first_use:
+            dims = [float(v) for v in wrap.dimensions]
+            self.b.result.approximations.append(Approximation(
+                "WrapEllipsoid", wrap.name, f"ellipsoid {dims} wrapped as {what}", gap, "m",
+                "largest gap between the two surfaces along any semi-axis"))
+        return kind, size, rot
+
+    def _alternative(self, wrap: WrapObject, kind: str) -> dict:
+        """The other stand-in of an ellipsoid (kind, size, quat in its MuJoCo body) for the wrap fit."""
+        other = "sphere" if kind == "cylinder" else "cylinder"
+        size, rot, _, _ = standins(wrap.dimensions)[other]
+        x = self.ctx.in_world(wrap.body, wrap.frame) @ Transform(rot)
+        return {"kind": other, "size": [float(v) for v in size], "quat": [float(v) for v in matrix_to_quat(x.rot)]}
 
     def _torus_cylinder(self, wrap: WrapObject, a: np.ndarray, b: np.ndarray, first_use: bool) -> Transform:
         """The frame (in the torus's) of the cylinder standing for torus ``wrap`` on the segment
@@ -241,15 +253,6 @@ def segment_distance(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
     ab = b - a
     t = np.clip((c - a) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0)
     return float(np.linalg.norm(a + t * ab - c))
-
-
-def _rotation_taking_z_to(axis: np.ndarray) -> np.ndarray:
-    """A rotation matrix (3, 3) whose third column is the unit vector ``axis``."""
-    z = axis / np.linalg.norm(axis)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z])
 
 
 def restore_geom_precision(xml: str, exact: dict[tuple[str, str], dict[str, np.ndarray]]) -> str:
