@@ -65,11 +65,8 @@ CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
 #: that MuJoCo takes the shorter way and cannot switch where OpenSim does not, between the poses
 #: drawn or beyond a coordinate's range (a sphere's or cylinder's side site is OpenSim's own switch).
 SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
-#: The fitting and check poses are drawn with the fit's seed plus this, and the validation poses
-#: with the seed plus VALIDATION_SEED: both apart from the poses
-#: :func:`o2m.validate.muscles.compare_muscles` draws with a seed itself (seed 0, as the fit's
-#: default, gave it the quick fit's 70 poses as its first 70 of 100: a check mostly in-sample).
-FIT_POSE_SEED = 104729
+#: The validation poses are drawn with the fit's seed plus this, apart from its poses and from
+#: :func:`o2m.validate.muscles.compare_muscles`'s (which draws with the seed itself).
 VALIDATION_SEED = 7919
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
@@ -415,8 +412,8 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         with open(path, "w") as fh:
             fh.write(reduced_xml(xml))
         ellipsoids = {t: {g.source for g in gs if g.kind in CONTACT_KINDS} for t, gs in by_tendon.items()}
-        _, targets = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed + FIT_POSE_SEED,
-                                 held, ellipsoids, n_fit, designed)
+        _, targets = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
+                                 ellipsoids, n_fit, designed)
         if n_valid:
             _, extra = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_valid, seed + VALIDATION_SEED,
                                    held, None, 0, designed, n_arms=0)
