@@ -3,10 +3,10 @@
 ``qpos0`` holds the coordinates' default values, which need not satisfy a PointConstraint,
 WeldConstraint, ConstantDistanceConstraint, PointOnLineConstraint or a loop's weld; OpenSim's
 ``initSystem`` assembles them first (:func:`o2m.osim.assembly.assembled_defaults`), and a
-simulation there starts with the constraints met. The keyframe takes those values as
-validation poses MuJoCo (independent and equality-held coordinates by name, the joint
-equalities resolved by :func:`~o2m.mj.posing.pose_mujoco`), and each point-on-line slide where
-its follower's point now projects. ``qpos0`` stays the default values: it is the reference of
+simulation there starts with the constraints met. The keyframe poses MuJoCo at those values as
+the validation does (coordinates by name, the joint equalities resolved by
+:func:`~o2m.mj.posing.pose_mujoco`), with each point-on-line slide where its follower's point
+now projects. ``qpos0`` stays the default values: it is the reference of
 every joint equality. Where every constraint is a coupler, nothing is assembled: ``qpos0`` is
 OpenSim's default state already.
 """
