@@ -220,14 +220,15 @@ def _residuals(x, s, ya, yp, ma, mp, a_min, cap) -> np.ndarray:
                            (np.minimum(fp, cap) - np.minimum(yp, cap))[mp]])
 
 
-def _saturation(ya: np.ndarray, yp: np.ndarray) -> float:
-    """Where the length fit saturates both models' forces (max isometric forces): at
-    :data:`FIT_FORCE_CAP` for a muscle OpenSim pulls harder than that somewhere in its length
-    range, nowhere (inf) for the others. A coordinate range far wider than the joint moves (a
-    free joint's default ±1 m) stretches a muscle to many optimal fiber lengths, where OpenSim's
-    passive force reaches 100 max isometric forces, which MuJoCo's passive curve does not follow;
-    unsaturated, those lengths outweigh the ones the muscle works at."""
-    y = np.concatenate([ya[np.isfinite(ya)], yp[np.isfinite(yp)]])
+def _saturation(t: MuscleSample) -> float:
+    """Where the length fit, and the errors reported of it, saturate both models' forces (max
+    isometric forces): at :data:`FIT_FORCE_CAP` for a muscle OpenSim pulls harder than that at
+    some length the fit uses, nowhere (inf) for the others. A coordinate range far wider than the
+    joint moves (a free joint's default ±1 m) stretches a muscle to many optimal fiber lengths,
+    where OpenSim's passive force reaches 100 max isometric forces, which MuJoCo's passive curve
+    does not follow; unsaturated, those lengths outweigh the ones the muscle works at."""
+    y = np.concatenate([t.active[::FIT_STRIDE], t.passive[::FIT_STRIDE]]) / t.force
+    y = y[np.isfinite(y)]
     return FIT_FORCE_CAP if y.size and float(np.max(y)) > FIT_FORCE_CAP else math.inf
 
 
@@ -269,7 +270,7 @@ def _start_point(t: MuscleSample) -> np.ndarray:
     return np.clip(x, _LOWER, _UPPER)
 
 
-def _fit_length(t: MuscleSample) -> tuple[np.ndarray, np.ndarray, float, float]:
+def _fit_length(t: MuscleSample, cap: float) -> tuple[np.ndarray, np.ndarray, float, float]:
     from scipy.optimize import least_squares
 
     idx = np.arange(0, len(t.lengths), FIT_STRIDE)
@@ -277,7 +278,7 @@ def _fit_length(t: MuscleSample) -> tuple[np.ndarray, np.ndarray, float, float]:
     ya, yp = t.active[idx] / t.force, t.passive[idx] / t.force
     ma, mp = np.isfinite(ya), np.isfinite(yp)
     s = (lengths - t.lengthrange[0]) / max(MJMINVAL, t.lengthrange[1] - t.lengthrange[0])
-    args = (s, ya, yp, ma, mp, t.min_activation, _saturation(ya, yp))
+    args = (s, ya, yp, ma, mp, t.min_activation, cap)
 
     def cost(x):
         r = _residuals(x, *args)
@@ -347,9 +348,8 @@ def _fit_velocity(t: MuscleSample, L0: float) -> tuple[float, float, float]:
     return float(mtu_vmax / max(MJMINVAL, L0 * c)), fvmax, rms
 
 
-def _errors(p: MuscleParams, t: MuscleSample) -> None:
-    """``p``'s errors against OpenSim at every evaluated length, forces saturated as the fit's."""
-    cap = _saturation(t.active / t.force, t.passive / t.force)
+def _errors(p: MuscleParams, t: MuscleSample, cap: float) -> None:
+    """``p``'s errors against OpenSim at every evaluated length, forces saturated at the fit's ``cap``."""
     fa = -mujoco_muscle_force(p, t.lengths, 0.0, 1.0) / t.force
     fp = -mujoco_muscle_force(p, t.lengths, 0.0, p.min_activation) / t.force
     ea = (np.minimum(fa, cap) - np.minimum(t.active / t.force, cap)) * 100
@@ -372,9 +372,10 @@ def tendon_damping(t: MuscleSample) -> float:
 
 
 def _fit_one(t: MuscleSample) -> MuscleParams:
-    x, x0, cost, start_cost = _fit_length(t)
+    cap = _saturation(t)
+    x, x0, cost, start_cost = _fit_length(t, cap)
     notes = list(t.notes)
-    if math.isfinite(_saturation(t.active / t.force, t.passive / t.force)):
+    if math.isfinite(cap):
         notes.append(f"OpenSim's force passes {FIT_FORCE_CAP:g} max isometric forces within the length range: the "
                      f"fit and its errors count any force above that as {FIT_FORCE_CAP:g}")
     r0, w, lmin, lmax, fpmax = (float(v) for v in x)
@@ -392,7 +393,7 @@ def _fit_one(t: MuscleSample) -> MuscleParams:
         damping=tendon_damping(t), lengths=t.lengths,
         opensim_active=t.active, opensim_passive=t.passive,
     )
-    _errors(p, t)
+    _errors(p, t, cap)
     return p
 
 
