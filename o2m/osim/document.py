@@ -17,7 +17,7 @@ from lxml import etree
 
 from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
 from o2m.osim import runtime
-from o2m.osim.kinds import default_coordinates, opensim_typenames, renamed_type
+from o2m.osim.kinds import count_text, default_coordinates, renamed_type, unknown_classes
 
 #: First document version of the OpenSim 4.x format.
 VERSION_4 = 40000
@@ -241,26 +241,14 @@ def _upgrade_with_opensim(path: Path) -> etree._ElementTree:
     try:
         model = opensim.Model(str(path))
     except Exception as exc:  # OpenSim raises a generic RuntimeError
-        unknown = _unknown_listed_classes(parse_xml(path))
+        unknown = unknown_classes(el for holder in parse_xml(path).getroot().iter("objects") for el in holder)
         listed = (f"; classes in its sets OpenSim 4.6 does not know (misspelt, or from a plugin): "
-                  f"{', '.join(f'{tag} ({n})' for tag, n in unknown.items())}" if unknown else "")
+                  f"{count_text(unknown)}" if unknown else "")  # OpenSim's upgrade names the first only
         raise ModelFileError(f"{path}: OpenSim could not read this 3.x document: {exc}{listed}") from None
     with tempfile.TemporaryDirectory(prefix="o2m-upgrade-") as tmp:
         out = Path(tmp) / path.name
         model.printToXML(str(out))
         return parse_xml(out)
-
-
-def _unknown_listed_classes(tree: etree._ElementTree) -> dict[str, int]:
-    """Tag -> count of the elements listed in a set (``<objects>``) whose class OpenSim 4.6 does
-    not register under that name or an old one: OpenSim's 3.x upgrade stops at the first."""
-    known = opensim_typenames()
-    counts: dict[str, int] = {}
-    for holder in tree.getroot().iter("objects"):
-        for el in holder:
-            if isinstance(el.tag, str) and el.tag not in known and renamed_type(el.tag) is None:
-                counts[el.tag] = counts.get(el.tag, 0) + 1
-    return counts
 
 
 def opensim_reason(exc: Exception) -> tuple[str | None, str]:

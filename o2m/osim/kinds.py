@@ -9,7 +9,8 @@ from o2m.osim import runtime
 
 __all__ = [
     "BODY_CONSTRAINTS", "LIGAMENT_TYPES", "MODEL_SETS", "MUSCLE_TYPES", "PATH_TYPES", "SKIP_REASONS",
-    "default_coordinates", "opensim_typenames", "refuse_unknown", "renamed_type", "set_of_type",
+    "count_text", "default_coordinates", "opensim_typenames", "refuse_unknown", "renamed_type", "set_of_type",
+    "unknown_classes",
 ]
 
 #: Constraints between two bodies that become MuJoCo equalities (:mod:`o2m.convert.constraints`).
@@ -94,18 +95,31 @@ SKIP_REASONS = {
     "ComponentSet": "generic components are not converted",
 }
 
+
+def unknown_classes(elements) -> dict[str, list]:
+    """Tag -> the elements of ``elements`` (lxml) of that tag, in their order, for each tag that
+    OpenSim 4.6 registers neither as a type nor as an old name of one (misspelt, or a plugin's)."""
+    known = opensim_typenames()
+    found: dict[str, list] = {}
+    for el in elements:
+        if isinstance(el.tag, str) and el.tag not in known and renamed_type(el.tag) is None:
+            found.setdefault(el.tag, []).append(el)
+    return found
+
+
+def count_text(found: dict[str, list]) -> str:
+    """``unknown_classes``'s result for a message: "Tag (count), ..."."""
+    return ", ".join(f"{tag} ({len(els)})" for tag, els in found.items())
+
+
 def refuse_unknown(doc, elements: list) -> None:
     """Raise one error (``doc.error``) naming the first of ``elements`` (lxml elements of
     ``doc``) by line whose tag OpenSim 4.6 does not know, and every unknown class with its count;
     nothing when all are known."""
-    known = opensim_typenames()
-    unknown = list({id(el): el for el in elements if el.tag not in known}.values())
-    if not unknown:
+    in_order = sorted({id(el): el for el in elements}.values(), key=lambda el: doc.line_of(el) or 0)
+    found = unknown_classes(in_order)
+    if not found:
         return
-    unknown.sort(key=lambda el: doc.line_of(el) or 0)
-    counts: dict[str, int] = {}
-    for el in unknown:
-        counts[el.tag] = counts.get(el.tag, 0) + 1
-    listed = ", ".join(f"{tag} ({n})" for tag, n in counts.items())
-    raise doc.error(unknown[0], f"is not an element OpenSim 4.6 knows (misspelt, or from a plugin); unknown "
-                                f"classes in this model: {listed}")
+    first = next(iter(found.values()))[0]
+    raise doc.error(first, f"is not an element OpenSim 4.6 knows (misspelt, or from a plugin); unknown "
+                           f"classes in this model: {count_text(found)}")

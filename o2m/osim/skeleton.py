@@ -85,7 +85,6 @@ def _identity_function() -> Function:
     return parse_function(el)
 
 
-
 @dataclass
 class Geometry:
     """A geometry element attached to a frame; ``frame`` is that frame's transform in ``body``."""
