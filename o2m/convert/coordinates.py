@@ -153,16 +153,25 @@ def choose_coordinate_axes(skel: Skeleton, drivers: dict[str, Driver]) -> dict[s
     return chosen
 
 
+#: A range this wide or wider is OpenSim's way of writing "no range" (rad or m).
+NO_RANGE_WIDTH = 1e3
+
+
+def _clamped_range(coordinate: Coordinate) -> bool:
+    """Whether the coordinate is clamped to a range OpenSim means as one (:data:`NO_RANGE_WIDTH`)."""
+    return coordinate.clamped and coordinate.range[1] - coordinate.range[0] < NO_RANGE_WIDTH
+
+
 def joint_limited(coordinate: Coordinate, hard_limits: bool) -> tuple[bool, str | None]:
     """Whether a coordinate's MuJoCo joint gets limits, and a note for the report where it cannot.
 
     OpenSim enforces a clamped coordinate's range only when it sets or assembles values, never in
     forward dynamics (a clamped slider under gravity falls through the end of its range), so the
     faithful joint is unlimited; ``hard_limits`` gives clamped coordinates MuJoCo's hard limits.
-    A range of 1000 or wider is OpenSim's way of writing "no range" and stays unlimited.
+    A range of :data:`NO_RANGE_WIDTH` or wider stays unlimited.
     """
     lo, hi = coordinate.range
-    if not (hard_limits and coordinate.clamped and hi - lo < 1e3):
+    if not (hard_limits and _clamped_range(coordinate)):
         return False, None
     if not lo < hi:  # MuJoCo's limits need two ends
         return False, (f"coordinate '{coordinate.name}' is clamped to a range of no width {[lo, hi]}: its "
@@ -173,8 +182,7 @@ def joint_limited(coordinate: Coordinate, hard_limits: bool) -> tuple[bool, str 
 def unenforced_clamps(skel: Skeleton, hard_limits: bool) -> list[str]:
     """The report's note naming the clamped coordinates whose MuJoCo joints stay unlimited (none
     with ``hard_limits``): users who expect joint limits learn why there are none."""
-    names = [c.name for c in skel.coordinates.values()
-             if c.clamped and not c.locked and c.range[1] - c.range[0] < 1e3]
+    names = [c.name for c in skel.coordinates.values() if _clamped_range(c) and not c.locked]
     if hard_limits or not names:
         return []
     return [f"{len(names)} clamped coordinates ({', '.join(names)}) have unlimited MuJoCo joints: OpenSim "
