@@ -132,9 +132,9 @@ def convert_activation_coordinate_actuator(ctx: _Context, el: etree._Element) ->
 
 def convert_path_actuator(ctx: _Context, el: etree._Element) -> None:
     """PathActuator -> a motor on its path's tendon, gear = -optimal_force (a pull for control > 0)."""
-    name = el.get("name")
-    if name not in ctx.names["tendon"]:
-        ctx.out.skipped.append(Skipped(el.tag, name, "its path became no MuJoCo tendon"))
+    name = ctx.path_tendon(el)
+    if name is None:
+        ctx.out.skipped.append(Skipped(el.tag, el.get("name"), "its path became no MuJoCo tendon"))
         return
     gear = np.array([-_number(el, "optimal_force", 1.0, ctx), 0, 0, 0, 0, 0])
     _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_TENDON, target=name)

@@ -271,6 +271,12 @@ class _Context:
     def spec(self) -> mujoco.MjSpec:
         return self.builder.spec
 
+    def path_tendon(self, el: etree._Element) -> str | None:
+        """The spatial tendon of path force ``el``'s GeometryPath (named as the force, built by
+        :mod:`o2m.convert.tendons` before the forces), None where its path became none."""
+        name = el.get("name")
+        return name if name in {t.name for t in self.spec.tendons} else None
+
     def unique(self, tag: str, name: str) -> str:
         used = self.names.setdefault(tag, set())
         out, k = name, 1

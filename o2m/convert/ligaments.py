@@ -47,8 +47,8 @@ DEFAULT_LIGAMENT_CURVE = (
 
 def _path_tendon(ctx: _Context, el: etree._Element) -> str:
     """The name of ``el``'s spatial tendon (its own name); an error where its path was not converted."""
-    name = el.get("name")
-    if name not in [t.name for t in ctx.spec.tendons]:
+    name = ctx.path_tendon(el)
+    if name is None:
         raise ctx.builder.doc.error(el, "has no MuJoCo tendon (its GeometryPath was not converted)")
     return name
 

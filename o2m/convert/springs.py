@@ -81,9 +81,9 @@ def convert_point_to_point_spring(ctx: _Context, el: etree._Element) -> None:
 
 def convert_path_spring(ctx: _Context, el: etree._Element) -> None:
     """PathSpring -> the elastic spring (dead band below ``resting_length``) of its path's tendon."""
-    b, name = ctx.builder, el.get("name")
-    if name not in ctx.names["tendon"]:
-        ctx.out.skipped.append(Skipped(el.tag, name, "its path became no MuJoCo tendon"))
+    b, name = ctx.builder, ctx.path_tendon(el)
+    if name is None:
+        ctx.out.skipped.append(Skipped(el.tag, el.get("name"), "its path became no MuJoCo tendon"))
         return
     stiffness = _number(el, "stiffness", math.nan, ctx)
     rest = _number(el, "resting_length", math.nan, ctx)
