@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 
 from o2m.convert.records import BuildResult
-from o2m.mj.posing import joint_equality_plan, pose_mujoco
+from o2m.mj.posing import equality_residual, joint_equality_plan, pose_mujoco
 from o2m.osim.assembly import assembled_defaults
 from o2m.osim.skeleton import Skeleton
 
@@ -48,10 +48,10 @@ def assembled_pose(model: mujoco.MjModel, skel: Skeleton, osim: Path, result: Bu
     given = {c.name: c.value for c in coords if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, c.name) >= 0}
     pose_mujoco(model, data, given, plan=joint_equality_plan(model))
     _slide_onto_lines(model, data, skel)
-    after = _residual(model, data, equalities)
+    after = equality_residual(model, data, equalities)
     qpos = data.qpos.copy()
     data.qpos[:] = model.qpos0
-    before = _residual(model, data, equalities)
+    before = equality_residual(model, data, equalities)
     moved.sort(key=lambda c: -abs(c.moved))
     listed = ", ".join(f"{c.name} {c.moved:+.4g}" for c in moved[:NAMED])
     more = f" and {len(moved) - NAMED} more" if len(moved) > NAMED else ""
@@ -73,13 +73,3 @@ def _slide_onto_lines(model: mujoco.MjModel, data: mujoco.MjData, skel: Skeleton
         gap = data.site(f"{c.name}_point").xpos - data.site(f"{c.name}_on_line").xpos
         data.qpos[jnt.qposadr[0]] = float(np.dot(gap, data.xaxis[jnt.id]))
     mujoco.mj_kinematics(model, data)
-
-
-def _residual(model: mujoco.MjModel, data: mujoco.MjData, names: list[str]) -> float:
-    """The largest violation of the equalities ``names`` at ``data.qpos`` (m, or rad for a weld's
-    rotation; ``mj_fwdPosition``)."""
-    mujoco.mj_fwdPosition(model, data)
-    ids = {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, n) for n in names}
-    rows = [i for i in range(data.nefc) if data.efc_type[i] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-            and data.efc_id[i] in ids]
-    return float(np.abs(data.efc_pos[rows]).max(initial=0.0))

@@ -10,7 +10,7 @@ equalities explicitly, in dependency order, so a pose is exact without running t
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -166,14 +166,18 @@ def pose_mujoco(
     mujoco.mj_comPos(model, data)
 
 
-def equality_residual(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+def equality_residual(model: mujoco.MjModel, data: mujoco.MjData, names: Sequence[str] | None = None) -> float:
     """Largest violation of the active equalities other than joint equalities (weld, connect,
-    tendon) at ``data.qpos`` (m, or rad for a weld's rotation); runs ``mj_fwdPosition``."""
+    tendon), or of the equalities ``names`` only, at ``data.qpos`` (m, or rad for a weld's
+    rotation); runs ``mj_fwdPosition``."""
     mujoco.mj_fwdPosition(model, data)
     rows = data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
     ids = data.efc_id[:data.nefc][rows]
-    body = model.eq_type[ids] != mujoco.mjtEq.mjEQ_JOINT
-    return float(np.abs(data.efc_pos[:data.nefc][rows][body]).max(initial=0.0))
+    if names is None:
+        chosen = model.eq_type[ids] != mujoco.mjtEq.mjEQ_JOINT
+    else:
+        chosen = np.isin(ids, [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, n) for n in names])
+    return float(np.abs(data.efc_pos[:data.nefc][rows][chosen]).max(initial=0.0))
 
 
 def load_mjcf(mjcf_path: str | os.PathLike) -> mujoco.MjModel:
