@@ -112,7 +112,8 @@ def best_with_kinds(fits: list[Any]) -> Any:
     plain = [f for f in fits if not f.swapped]
     if best.swapped and plain:
         base = best_variant(plain)
-        if base.exact or not _clearly_better(best, base):  # exact: within OpenSim's noise already
+        # exact: within OpenSim's noise already; a swap may not bring flips the plain one has not
+        if base.exact or best.flips > base.flips or not _clearly_better(best, base):
             best = base
     if len(fits) > 1:
         best.variants = variant_errors(fits)

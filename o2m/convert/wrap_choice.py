@@ -34,6 +34,11 @@ MAX_VARIANTS = 8
 #: with a margin of 1 point Rajagopal2016's gaslat_l kept a wrap that left it 1.62 % off, not 0.52).
 VARIANT_PCT_FACTOR = 1.2
 VARIANT_PCT_MARGIN = 0.1
+#: Of those, one whose tendon flips round a wrap between its fitting poses where OpenSim's path
+#: does not (:mod:`o2m.convert.wrap_jumps`) gives way to one that does not flip, if that one's
+#: objective is at most this factor larger: a length that jumps in a simulation costs more than
+#: a slightly larger error at the poses.
+FLIP_TRADE = 1.5
 #: The label of a split segment's run that keeps none of its wraps.
 NO_WRAP = "straight"
 
@@ -140,20 +145,25 @@ def _worst_pct(fit: Any) -> float:
 def best_variant(fits: list[Any]) -> Any:
     """Of one tendon's fitted variants (:class:`o2m.convert.wrapfit.PathFit` s), the one with the
     smallest objective over all poses among those whose worst length error is near the smallest
-    (:data:`VARIANT_PCT_FACTOR`), on a tie the first; it records every variant's errors."""
+    (:data:`VARIANT_PCT_FACTOR`), on a tie the first, unless it flips where OpenSim does not and
+    another of them does not, within :data:`FLIP_TRADE`; it records every variant's errors."""
     floor = min(_worst_pct(f) for f in fits)
     eligible = [f for f in fits if _worst_pct(f) <= VARIANT_PCT_FACTOR * floor + VARIANT_PCT_MARGIN]
     # on equal errors the first (the most wraps kept): a wrap that acts at none of the sampled
     # poses may act at others
     best = min(eligible, key=_overall)
+    steady = [f for f in eligible if not f.flips and _overall(f) <= FLIP_TRADE * _overall(best)]
+    if best.flips and steady:
+        best = min(steady, key=_overall)
     if len(fits) > 1:
         best.variants = variant_errors(fits)
     return best
 
 
 def variant_errors(fits: list[Any]) -> dict[str, dict[str, float]]:
-    """Each fitted variant's objective (mm²) and worst length error (%) over all its poses."""
-    return {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f)} for f in fits}
+    """Each fitted variant's objective (mm²) and worst length error (%) over all its poses, and
+    its flips between the fitting poses that OpenSim does not share."""
+    return {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f), "flips": f.flips} for f in fits}
 
 
 #: MjsTendon attributes that are no setting of its own.

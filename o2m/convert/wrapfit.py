@@ -49,6 +49,7 @@ import numpy as np
 from o2m.convert.ellipsoid_standins import apply_kinds, best_with_kinds, swap_kinds_xml, swapped_geometry, with_kinds
 from o2m.convert.reduced import reduced_xml, without_unused
 from o2m.convert.wrap_choice import drop_from_spec, whole_and_straight, xml_without
+from o2m.convert.wrap_jumps import count_flips, segment_jumps
 from o2m.convert.wrap_targets import fit_targets
 from o2m.parallel import map_with_progress
 from o2m.transforms import OSIM_TO_MJ
@@ -65,8 +66,12 @@ CONTACT_KINDS = ("WrapEllipsoid", "WrapTorus")
 #: that MuJoCo takes the shorter way and cannot switch where OpenSim does not, between the poses
 #: drawn or beyond a coordinate's range (a sphere's or cylinder's side site is OpenSim's own switch).
 SIDE_OPTIONAL_KINDS = ("WrapEllipsoid",)
-#: The validation poses are drawn with the fit's seed plus this, apart from its poses and from
-#: :func:`o2m.validate.muscles.compare_muscles`'s (which draws with the seed itself).
+#: The fitting poses are drawn with the fit's seed plus this, so that they are not the poses
+#: :func:`o2m.validate.muscles.compare_muscles` draws with the same seed: a comparison with a
+#: small seed then measures the fit on poses it has not seen.
+FIT_POSE_SEED = 104729
+#: The validation poses are drawn with the fit's seed plus this, apart from the fitting poses
+#: and from :func:`o2m.validate.muscles.compare_muscles`'s.
 VALIDATION_SEED = 7919
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
@@ -113,9 +118,16 @@ class PathFit:
     swapped: dict[str, dict[str, Any]] = field(default_factory=dict)
     #: errors after, on the validation poses (lengths only; empty without them)
     valid_after: dict[str, float] = field(default_factory=dict)
+    #: jumps of the fitted tendon between consecutive fitting poses
+    #: (:func:`o2m.convert.wrap_jumps.segment_jumps`), and how many OpenSim does not share
+    #: (:func:`~o2m.convert.wrap_jumps.count_flips`)
+    jumps: list[dict[str, Any]] = field(default_factory=list)
+    flips: int = 0
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        out.pop("jumps")  # poses, for the flip count only
+        return out
 
 
 @dataclass
@@ -284,6 +296,12 @@ class _Evaluator:
                 self.m.wrap_prm[w] = side
         return out
 
+    def jumps(self, theta: np.ndarray, rows: slice) -> list[dict[str, Any]]:
+        """Jumps of the tendon with parameters ``theta`` (its side sites as they are now) between
+        consecutive poses ``rows`` (:func:`o2m.convert.wrap_jumps.segment_jumps`)."""
+        self.apply(theta)
+        return segment_jumps(self.m, self.t.qpos[rows])
+
     def objective(self, theta: np.ndarray, rows: slice) -> float:
         le, me = self.errors(theta, rows)
         return _objective(le, me)
@@ -359,6 +377,7 @@ def _fit_one(task: _Task) -> PathFit:
     if not accepted:
         best_x, after, ca = x0, before, cb
     unneeded = ev.unneeded_side_sites(best_x, slice(0, n_arms))
+    jumps = ev.jumps(best_x, fit)
     pos, rad, side = ev.values(best_x)
     values = {g: {"pos": pos[k].tolist(), "radius": [float(rad[k])]} for k, g in enumerate(task.geoms)}
     values.update({s: {"pos": side[k].tolist()} for k, s in enumerate(task.sites) if s and s not in unneeded})
@@ -366,7 +385,7 @@ def _fit_one(task: _Task) -> PathFit:
     return PathFit(task.tendon, list(task.geoms), list(task.kinds), list(task.coordinates), ev.n_params, task.n_fit,
                    before, after, cb, ca, accepted, ev.evaluations, time.perf_counter() - t0, values,
                    task.variant, list(task.dropped) + unneeded, exact=exact, swapped=dict(task.swapped),
-                   valid_after=ev.summary(best_x, valid) if task.n_valid else {})
+                   valid_after=ev.summary(best_x, valid) if task.n_valid else {}, jumps=jumps)
 
 
 # --------------------------------------------------------------------------------------------
@@ -412,8 +431,8 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
         with open(path, "w") as fh:
             fh.write(reduced_xml(xml))
         ellipsoids = {t: {g.source for g in gs if g.kind in CONTACT_KINDS} for t, gs in by_tendon.items()}
-        _, targets = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check, seed, held,
-                                 ellipsoids, n_fit, designed)
+        _, targets = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_fit + n_check,
+                                 seed + FIT_POSE_SEED, held, ellipsoids, n_fit, designed)
         if n_valid:
             _, extra = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_valid, seed + VALIDATION_SEED,
                                    held, None, 0, designed, n_arms=0)
@@ -428,6 +447,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
                                tendon_seed(seed, tendon), budget, list((vias or {}).get(tendon, [])),
                                int(sizes["starts"] if starts is None else starts)))
     fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
+    count_flips(osim_path, reduced_xml(xml), fitted)
     results: dict[str, list[PathFit]] = {}
     for res in fitted:
         results.setdefault(res.tendon, []).append(res)
@@ -514,9 +534,12 @@ def format_fits(fits: Sequence[PathFit]) -> list[str]:
                      f"{a['len_rms_mm']:.3g} mm (max {b['len_max_pct']:.3g} -> {a['len_max_pct']:.3g} %), moment arm "
                      f"rms {b['ma_rms_mm']:.3g} -> {a['ma_rms_mm']:.3g} mm"
                      + ("" if f.accepted else " (within OpenSim's noise: not fitted)" if f.exact
-                        else " (not better: start kept)") + f", {f.seconds:.1f} s")
+                        else " (not better: start kept)") + f", {f.seconds:.1f} s"
+                     + (f"; flips round a wrap where OpenSim does not on {f.flips} of the lines between its poses"
+                        if f.flips else ""))
         if f.variants:
             tried = "; ".join(f"{label} {v['objective']:.3g} mm², {v['len_max_pct']:.3g} %"
+                              + (f", {v['flips']} flips" if v.get("flips") else "")
                               for label, v in f.variants.items())
             lines.append(f"    wraps kept: {f.variant} (objective and worst length error over all poses: {tried})")
     return lines

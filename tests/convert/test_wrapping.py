@@ -397,7 +397,7 @@ def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_w
 
     def fit(label, objective, pct):
         errors = {"objective": objective, "len_max_pct": pct, "poses": 10}
-        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[])
+        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[], flips=0)
 
     fits = [fit("both", 492.0, 35.4), fit("PEC12hum", 447.0, 26.7), fit("PEC1hh", 398.0, 40.0)]
     best = best_variant(fits)

@@ -25,7 +25,7 @@ from o2m.osim.spikes import BAND_FRACTION, DETOUR_FRACTION, FULL_TURN, LOOP_KIND
 from o2m.validate.floors import target_misses
 from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, sweep_jumps, trajectory_jumps
 from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_MEDIAN_MM, MA_P95_MM, compare_muscles
-from tests.helpers import approximation_budget
+from tests.helpers import QUICK, approximation_budget
 
 NAMES = ["tug_of_war", "arm26", "leg6dof9musc", "gait10dof18musc", "gait2354", "gait2392", "mobl_arms_no_wrap"]
 
@@ -50,6 +50,13 @@ GAPS = {
     "mobl_arms_no_wrap": {"ma_p95": 4.2, "ma_max": 15.0,
                           "ma_floor": {m: "shoulder_elv" for m in ("PECM2", "PECM3", "LAT2", "LAT3")}},
 }
+#: Gaps of the quick wrap fit only, measured on poses it did not fit (its poses are drawn apart
+#: from these, o2m.convert.wrapfit.FIT_POSE_SEED): Arm26's BIClong about r_shoulder_elev. OpenSim's
+#: BIClonghh ellipsoid (quadrant -y) takes the path on with a kink, its moment arm stepping from
+#: -14 to +18 mm at r_shoulder_elev -1.37 rad; MuJoCo's sphere takes it on smoothly, and the
+#: quick fit (40 poses) puts the onset about 0.04 rad away, so the comparison's poses there are up
+#: to 24 mm off (p95 2.90 mm). The full fit meets the targets on the same poses (1.40 / 1.91 mm).
+QUICK_GAPS = {"arm26": {"ma_p95": 3.0}}
 #: Measured MuJoCo sweep jumps not met (tendon -> mm): none. (MuJoCo's psoas/iliacus step at hip
 #: flexion -90 and +45 degrees is OpenSim's own, 19.5-22.8 mm, at the same place.)
 JUMP_GAPS: dict[str, dict[str, float]] = {}
@@ -88,7 +95,7 @@ def test_every_path_is_a_named_tendon_and_plain_paths_are_exact(converted):
 def test_issue_targets_over_200_poses(converted):
     name, osim, conv = converted
     rep = compare_muscles(osim, conv.xml, n_poses=200, seed=0, ma_poses=50)
-    gap = GAPS.get(name, {})
+    gap = {**GAPS.get(name, {}), **(QUICK_GAPS.get(name, {}) if QUICK else {})}
     for muscle, e in rep.muscles.items():
         allowed = gap.get("len", {}).get(muscle, LEN_PCT)
         assert e.max_len_pct <= allowed, f"{name}/{muscle}: length error {e.max_len_pct:.3g} % > {allowed} %"
@@ -126,6 +133,25 @@ def test_moment_arm_gaps_are_opensim_inconsistency(converted):
         front = continuous_tendon_front(osim, conv.xml, muscle, coordinate, pcts=(LEN_PCT,), n=301)
         best = front["front"][LEN_PCT]
         assert best is not None and best["rms"] * 1e3 > MA_MAX_MM, (muscle, coordinate, best)
+
+
+def test_arm26_quick_gap_is_at_opensims_kink(bundled_conversion):
+    """QUICK_GAPS's cause: OpenSim's BIClong moment arm about r_shoulder_elev (-dL/dq, the rest at
+    defaults) steps by over 15 mm within 0.001 rad near -1.37 rad, where its wrap takes the path
+    on; MuJoCo's sphere takes it on smoothly, so no stand-in matches both sides at once."""
+    from o2m.osim.pair import ModelPair
+
+    fetched, conv = bundled_conversion("arm26")
+    pair = ModelPair(fetched.osim, conv.xml)
+    col = [n for n, _, _ in pair.matched].index("BIClong")
+    base = pair.os_indep_values(pair.os_state(None))
+    qs = np.linspace(-1.40, -1.15, 251)
+    length = np.array([pair.os_lengths(pair.os_state({**base, "r_shoulder_elev": q}))[col] for q in qs])
+    arm = -np.gradient(length, qs)
+    steps = np.abs(np.diff(arm))
+    k = int(np.argmax(steps))
+    assert arm[: k + 1].max() < -5e-3 and arm[k + 1:].min() > 10e-3, (qs[k], arm[k], arm[k + 1])
+    assert -1.40 < qs[k] < -1.34, qs[k]
 
 
 def test_carrier_slides_meet_the_derivative_gate(converted):
@@ -198,37 +224,42 @@ def test_simulates_one_second_of_random_excitation(converted):
 # The wrapped MoBL-ARMS (84 wrap objects): not yet at the targets; its measured floors asserted
 # --------------------------------------------------------------------------------------------
 
-#: Measured on the wrapped MoBL-ARMS (quick mode, seed 0, 100 poses, 25 for moment arms): worst
-#: length 15.6 % (PECM1), moment arms 0.331 / 8.70 / 14.1 mm, 129 OpenSim samples left out, each
-#: with its evidence (checked below): 57 windings of SUP round its cylinder (over a full turn, for
-#: pro_sup above about 0.07 rad), 39 loops round TMAJ_LAThum (TMAJ, LAT1-3: OpenSim's quadrant rule
-#: takes the path 268-299 degrees round, its runs crossing, which MuJoCo's wrap refuses), 19 lengths
-#: not of the path OpenSim draws (CORB: 183.7 mm for 253.6 mm drawn; several wraps on one segment)
-#: and 14 spikes or bands (TRIlong's 0.05-rad band among them). Each bound a little above. Before
-#: the winding test (73 left out): 24.3 % (SUP, fitted between its valid lengths and its windings),
-#: 0.331 / 8.70 / 14.0 mm; before the loop and inconsistency tests: 27.5 % (TMAJ), 0.331 / 9.54 /
-#: 15.6 mm. PECM/LAT keep the no-wrap model's same-body floor against computeMomentArm (8.4-12.4 mm
-#: RMS about shoulder_elv, asserted there). Not the targets: PECM1 16 %, LAT3 13 % (WRAPPED_MOBL_OWN).
-WRAPPED_MOBL = {"len_pct": 16.5, "ma_median_mm": 0.35, "ma_p95_mm": 9.2, "ma_max_mm": 14.5, "left_out": 135}
+#: Measured on the wrapped MoBL-ARMS (quick mode, seed 0, 100 poses, 25 for moment arms, none of
+#: them the wrap fit's own: o2m.convert.wrapfit.FIT_POSE_SEED): worst length 26.4 % (PECM1; DELT3
+#: 20.9 %), moment arms 0.600 / 11.3 / 18.5 mm, 133 OpenSim samples left out, each with its
+#: evidence (checked below): windings of SUP round its cylinder (over a full turn, for pro_sup
+#: above about 0.07 rad), loops round TMAJ_LAThum (TMAJ, LAT1-3: OpenSim's quadrant rule takes the
+#: path 268-299 degrees round, its runs crossing, which MuJoCo's wrap refuses), lengths not of the
+#: path OpenSim draws (CORB: 183.7 mm for 253.6 mm drawn; several wraps on one segment) and spikes
+#: or bands (TRIlong's 0.05-rad band among them). Each bound a little above. Until the fit drew its
+#: poses apart, 70 of these 100 poses were its own fitting and check poses, and the same
+#: conversion measured 15.6 % (PECM1) and 0.331 / 8.70 / 14.1 mm there: an in-sample figure. At
+#: full size (120 fitting poses) 18.8 % (PECM1), 0.571 / 8.96 / 19.0 mm. PECM/LAT keep the no-wrap
+#: model's same-body floor against computeMomentArm (8.4-12.4 mm RMS about shoulder_elv, asserted
+#: there).
+WRAPPED_MOBL = {"len_pct": 27.0, "ma_median_mm": 0.62, "ma_p95_mm": 11.6, "ma_max_mm": 19.0, "left_out": 137}
 #: The wrapped MoBL-ARMS's missed targets (same report) at a floor OpenSim's own path forces on any
 #: tendon, o2m within the target of it (o2m.validate.floors; (path, coordinate) for a moment arm):
-#: PECM1-3 and LAT1-3 keep the no-wrap model's same-body segments, where computeMomentArm is not
-#: -dL/dq (3.3-14.7 mm RMS about shoulder_elv for any tendon within 1 %).
-WRAPPED_MOBL_FLOORS = {(m, "shoulder_elv") for m in ("PECM1", "PECM2", "PECM3", "LAT1", "LAT2", "LAT3")}
+#: PECM2-3 and LAT1-2 keep the no-wrap model's same-body segments, where computeMomentArm is not
+#: -dL/dq (8.4-14.7 mm RMS about shoulder_elv for any tendon within 1 %). PECM1's and LAT3's are
+#: further than the target from their floors (9.85 mm against 3.29, 18.5 against 10.5): o2m's own.
+WRAPPED_MOBL_FLOORS = {(m, "shoulder_elv") for m in ("PECM2", "PECM3", "LAT1", "LAT2")}
 #: ... and those that are o2m's own, measured the same way (lengths over 1 %; moment-arm pairs
 #: over 2 mm RMS, the p95 target): the set may only shrink. LAT3's and LAT1's lengths are beyond
 #: the target for any continuous tendon (OpenSim's steps: floors 5.41 % at elv_angle -0.816, 1.35 %
-#: at shoulder_elv 3.09) but o2m's are further (13.0, 10.9 %). SUP left the set with the winding test.
-#: PECM1 about elv_angle and shoulder_rot (4.2, 2.2 mm) came with its straight variant, which took
-#: its length 18.8 -> 15.6 % and its arm about shoulder_elv 5.2 -> 4.5 mm.
-WRAPPED_MOBL_OWN = {(m, None) for m in ("LAT3", "LAT1", "PECM1", "LAT2", "BIClong", "TMIN", "PECM2",
+#: at shoulder_elv 3.09) but o2m's are further (14.4, 9.9 %). SUP's valid lengths (its windings
+#: left out) are 4.3 % off at worst.
+WRAPPED_MOBL_OWN = {(m, None) for m in ("LAT3", "LAT1", "PECM1", "LAT2", "BIClong", "TMIN", "PECM2", "SUP",
                                         "TMAJ", "CORB", "INFSP", "SUBSC", "PECM3", "TRIlong", "DELT3", "DELT1")} | {
     ("TMIN", "elv_angle"), ("TMIN", "shoulder_rot"), ("TMIN", "shoulder_elv"), ("LAT1", "elv_angle"),
     ("LAT1", "shoulder_rot"), ("LAT2", "elv_angle"), ("LAT2", "shoulder_rot"), ("LAT3", "shoulder_rot"),
-    ("LAT3", "elv_angle"), ("PECM1", "elv_angle"), ("PECM1", "shoulder_rot"), ("PECM2", "elv_angle"),
-    ("INFSP", "elv_angle"), ("INFSP", "shoulder_rot"), ("BIClong", "elv_angle"), ("BIClong", "shoulder_rot"),
-    ("TMAJ", "shoulder_elv"), ("CORB", "shoulder_elv"), ("TRIlong", "shoulder_rot"), ("TRIlong", "elv_angle"),
-    ("SUBSC", "shoulder_rot")}
+    ("LAT3", "elv_angle"), ("LAT3", "shoulder_elv"), ("PECM1", "elv_angle"), ("PECM1", "shoulder_rot"),
+    ("PECM1", "shoulder_elv"), ("PECM2", "elv_angle"), ("INFSP", "elv_angle"), ("INFSP", "shoulder_rot"),
+    ("BIClong", "elv_angle"), ("BIClong", "shoulder_rot"), ("BIClong", "elbow_flexion"), ("TMAJ", "shoulder_elv"),
+    ("TMAJ", "elv_angle"), ("TMAJ", "shoulder_rot"), ("CORB", "shoulder_elv"), ("TRIlong", "shoulder_rot"),
+    ("TRIlong", "elv_angle"), ("TRIlong", "shoulder_elv"), ("SUBSC", "shoulder_rot"), ("DELT3", "elv_angle"),
+    ("DELT3", "shoulder_rot"), ("DELT3", "shoulder_elv"), ("FCU", "elbow_flexion"), ("FDSL", "elbow_flexion"),
+    ("TRIlong", "elbow_flexion"), ("CORB", "elv_angle")}
 
 
 @pytest.fixture(scope="module")
@@ -267,11 +298,9 @@ def test_wrapped_mobl_arms_keeps_its_measured_floors(wrapped_report):
 
 def test_wrapped_mobl_arms_misses_are_opensim_floors_or_known(wrapped_mobl, wrapped_report):
     """Every missed target is at a floor OpenSim's own path sets or among o2m's known misses, and
-    each of WRAPPED_MOBL_FLOORS that still misses is at its floor; SUP, its windings left out,
-    misses none (its valid lengths within 1 %)."""
+    each of WRAPPED_MOBL_FLOORS that still misses is at its floor."""
     osim, conv = wrapped_mobl
     misses = {(m.path, m.coordinate): m for m in target_misses(osim, conv.xml, wrapped_report)}
-    assert not [m.describe() for k, m in misses.items() if k[0] == "SUP"]
     unknown = [m.describe() for k, m in misses.items() if not m.at_floor and k not in WRAPPED_MOBL_OWN]
     assert not unknown, unknown
     lost = [m.describe() for k, m in misses.items() if k in WRAPPED_MOBL_FLOORS and not m.at_floor]
@@ -303,10 +332,11 @@ def test_wrapped_mobl_arms_simulates_one_second_of_random_excitation(wrapped_mob
 
 #: Jumps of the wrapped MoBL-ARMS's tendons along its runs of the dataset's 19 test sets (the
 #: dataset's excitations and initial states; quick conversion) that OpenSim's path does not share
-#: at the same poses: LAT1 9.6 mm (one set), BIClong 2.9 mm (one set). Nine more, SUP's 19.2 mm at
-#: pro_sup 0.32 rad, fall where OpenSim's own SUP winds 1.4 turns round its cylinder (no reference
-#: there). Bounds a little above.
-WRAPPED_MOBL_FLIPS = {"count": 3, "largest_m": 0.011}
+#: at the same poses: none. The wrap fit prefers a variant that does not flip between its poses
+#: (o2m.convert.wrap_jumps); choosing on errors at the poses alone, TRIlong kept its TRIlongglen
+#: cylinder alone and flipped 17 times (1.6-3.4 mm) here. Jumps where OpenSim's own SUP winds
+#: round its cylinder (no reference there) are left out.
+WRAPPED_MOBL_FLIPS = {"count": 0, "largest_m": 0.0}
 
 
 def test_wrapped_mobl_arms_paths_jump_where_opensims_do(wrapped_mobl):
