@@ -76,9 +76,8 @@ FIT_POSE_SEED = 104729
 VALIDATION_SEED = 7919
 #: A fit whose mean squared length error on the validation poses exceeds its start's by more than
 #: this factor is not kept. Those poses have lengths only, so a fit that trades a little length
-#: for much better moment arms is a little worse there (MoBL-ARMS's DELT1 on a sphere: 1.09 times
-#: its start, its fitting objective 54 -> 6 mm²); one that stops wrapping where its poses are few
-#: is many times worse (recfem_l: 16 times).
+#: for much better moment arms is a little worse there; one that stops wrapping where its poses
+#: are few is many times worse (docs/muscle-paths.md, "A fit not far worse on poses it never saw").
 VALIDATION_GROWTH = 2.0
 #: Length scale (m) of the position parameters of a geom: at least this, else its radius.
 MIN_SCALE = 0.004
@@ -436,7 +435,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     n_fit = int(n_poses or sizes["poses"])
     n_check = max(10, n_fit // 2) if n_poses else sizes["check"]
     budget = int(sizes["evals"] if evals is None else evals)
-    n_valid = int(sizes["validate"])  # lengths only: a fit is kept only if no worse there
+    n_valid = int(sizes["validate"])  # lengths only: no fit kept that is far worse there
     by_tendon: dict[str, list[Any]] = {}
     for g in path_geoms:
         by_tendon.setdefault(g.tendon, []).append(g)
