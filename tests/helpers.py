@@ -246,3 +246,13 @@ def arm_and_block(name: str, arm_angle: float, block_pose) -> tuple:
     for i, v in enumerate(block_pose):
         free.upd_coordinates(i).setDefaultValue(float(v))
     return m, arm, block
+
+
+#: MJCF: one hinge; tendon ``m`` runs from site ``a`` round sphere ``g`` (side site ``s`` below it)
+#: to site ``c`` on the turning body, wrapping the sphere over part of the range.
+ONE_HINGE_SPHERE_TENDON = """<mujoco><worldbody><site name="a" pos="0 0 0.1"/><geom name="g" type="sphere" size="0.02"
+  pos="0.05 0 0.02" contype="0" conaffinity="0"/><site name="s" pos="0.05 0 -0.04"/>
+  <body name="b" pos="0.1 0 0"><joint name="q" axis="0 1 0"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>
+  <site name="c" pos="0 0 -0.1"/></body>
+  </worldbody><tendon><spatial name="m"><site site="a"/><geom geom="g" sidesite="s"/><site site="c"/>
+  </spatial></tendon></mujoco>"""

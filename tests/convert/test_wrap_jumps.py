@@ -9,6 +9,7 @@ import numpy as np
 
 from o2m.convert.wrap_choice import FLIP_TRADE, best_variant
 from o2m.convert.wrap_jumps import JUMP_ATOL, opensim_shares, segment_jumps
+from tests.helpers import ONE_HINGE_SPHERE_TENDON
 
 #: A site on a body turning about z passes a fixed sphere; the side site on +y sends the path round
 #: the +y side, so at q = pi/2 (c at (0, -0.2, 0)) its length jumps from 0.28 to 0.49 m: the long way.
@@ -71,15 +72,6 @@ def test_a_variant_that_flips_gives_way_to_a_near_one_that_does_not():
     assert best_variant([fit("a", 10.0, 1.0, 0), fit("b", 12.0, 1.0, 0)]).variant == "a"
 
 
-#: One hinge; the tendon wraps its sphere (side site below) over part of the range.
-ONE_HINGE = """<mujoco><worldbody><site name="a" pos="0 0 0.1"/><geom name="g" type="sphere" size="0.02"
-  pos="0.05 0 0.02" contype="0" conaffinity="0"/><site name="s" pos="0.05 0 -0.04"/>
-  <body name="b" pos="0.1 0 0"><joint name="q" axis="0 1 0"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>
-  <site name="c" pos="0 0 -0.1"/></body>
-  </worldbody><tendon><spatial name="m"><site site="a"/><geom geom="g" sidesite="s"/><site site="c"/>
-  </spatial></tendon></mujoco>"""
-
-
 def test_a_fit_far_worse_on_its_validation_poses_is_not_kept():
     """Fitting and check targets are the straight path's lengths (the sphere should get out of the
     way); the validation targets are the wrapped path's own, which the start meets exactly. The
@@ -88,7 +80,7 @@ def test_a_fit_far_worse_on_its_validation_poses_is_not_kept():
     from o2m.convert.wrapfit import VALIDATION_GROWTH, _fit_one, _task
     from o2m.convert.wraps import PathGeom
 
-    model = mujoco.MjModel.from_xml_string(ONE_HINGE)
+    model = mujoco.MjModel.from_xml_string(ONE_HINGE_SPHERE_TENDON)
     data = mujoco.MjData(model)
     qs = np.linspace(-1.2, 1.2, 24)
     straight, wrapped = [], []
@@ -102,13 +94,14 @@ def test_a_fit_far_worse_on_its_validation_poses_is_not_kept():
     fitting = {"qpos": qs[:, None], "dv": np.ones((len(qs), 1, 1)), "length": straight,
                "arm": -np.gradient(straight, qs)[:, None], "coordinates": ["q"], "contacts": {}}
     geoms = [PathGeom("m", "g", "s", "WrapSphere", "G")]
-    alone = _fit_one(_task("m", ONE_HINGE, geoms, fitting, PathVariant("G", frozenset()), 16, 1, 200, [], 1))
+    variant = PathVariant("G", frozenset())
+    alone = _fit_one(_task("m", ONE_HINGE_SPHERE_TENDON, geoms, fitting, variant, 16, 1, 200, [], 1))
     assert alone.accepted and alone.after["objective"] < 0.1 * alone.before["objective"]
 
     checked = {**fitting, "qpos": np.concatenate([qs, qs])[:, None], "dv": np.ones((2 * len(qs), 1, 1)),
                "length": np.concatenate([straight, wrapped]),
                "arm": np.concatenate([fitting["arm"], np.full((len(qs), 1), np.nan)]), "n_arms": len(qs)}
-    refused = _fit_one(_task("m", ONE_HINGE, geoms, checked, PathVariant("G", frozenset()), 16, 1, 200, [], 1))
+    refused = _fit_one(_task("m", ONE_HINGE_SPHERE_TENDON, geoms, checked, variant, 16, 1, 200, [], 1))
     assert not refused.accepted
     assert refused.valid_after["objective"] < 1e-9  # the start, exact on its validation poses
     assert VALIDATION_GROWTH >= 1.0

@@ -34,7 +34,14 @@ from o2m.mj.posing import pose_mujoco
 from o2m.validate.jumps import sweep_jumps
 from o2m.validate.kinematics import compare_kinematics
 from o2m.validate.muscles import compare_muscles
-from tests.helpers import arm_path_actuator, convert_options, model_file, pendulum_lengths, pin_pendulum
+from tests.helpers import (
+    ONE_HINGE_SPHERE_TENDON,
+    arm_path_actuator,
+    convert_options,
+    model_file,
+    pendulum_lengths,
+    pin_pendulum,
+)
 
 osim.Logger.setLevelString("error")
 
@@ -564,12 +571,7 @@ def test_a_variant_keeping_no_wrap_is_fitted_and_kept_where_the_straight_path_is
     from o2m.convert.wrap_choice import NO_WRAP, PathVariant, best_variant
     from o2m.convert.wrapfit import _fit_one, _task
 
-    xml = """<mujoco><worldbody><site name="a" pos="0 0 0.1"/><geom name="g" type="sphere" size="0.02"
-      pos="0.05 0 0.02" contype="0" conaffinity="0"/><site name="s" pos="0.05 0 -0.04"/>
-      <body name="b" pos="0.1 0 0"><joint name="q" axis="0 1 0"/><inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/>
-      <site name="c" pos="0 0 -0.1"/></body>
-      </worldbody><tendon><spatial name="m"><site site="a"/><geom geom="g" sidesite="s"/><site site="c"/>
-      </spatial></tendon></mujoco>"""
+    xml = ONE_HINGE_SPHERE_TENDON
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     qs = np.linspace(-1.2, 1.2, 24)
