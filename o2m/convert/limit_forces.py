@@ -31,6 +31,7 @@ active) and recorded per force.
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
 import mujoco
@@ -92,6 +93,15 @@ def motion_type(skel: Skeleton, coordinate: str) -> str:
     return out or "coupled"
 
 
+#: How far above the minimax error (relative) :func:`_minimax` looks for its smallest coefficients.
+MINIMAX_SLACK = 1e-6
+#: :func:`fit_deadband` locates its edge to this fraction of the searched interval. At 1e-5 the
+#: search stopped where rounding led it: a ligament's stiffness 2e-5 apart on two machines.
+DEADBAND_XTOL = 1e-10
+#: Weight of the RMS error beside the worst error when :func:`fit_deadband` chooses its edge.
+DEADBAND_TIE = 1e-3
+
+
 def _minimax(d: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     """(a, b, c) minimising max |h(d) - y| for h(d) = a d + b d² + c d³ (d >= 0 samples), with h
     non-decreasing from 0 (a >= 0, c >= 0, h' >= 0 up to 10 times the largest d): a linear programme."""
@@ -109,7 +119,19 @@ def _minimax(d: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     b_ub = np.r_[y, -y, np.zeros(dd.size)]
     res = linprog(np.r_[0.0, 0.0, 0.0, 1.0], A_ub=a_ub, b_ub=b_ub,
                   bounds=[(0, None), (None, None), (0, None), (0, None)], method="highs")
-    p = res.x[:3] / scale if res.success else np.zeros(3)
+    if not res.success:
+        return np.zeros(3), float(np.max(np.abs(y)))
+    # The minimax optimum is often a face, not a point, and the vertex the solver returns then
+    # depends on rounding (two machines gave a ligament stiffness 2.4e-4 apart at the same error):
+    # among the coefficients within MINIMAX_SLACK of the optimum, take the smallest (scaled) ones.
+    worst = res.x[3] * (1.0 + MINIMAX_SLACK) + 1e-12 * max(float(np.max(np.abs(y))), 1e-300)
+    # variables a, b+, b-, c (scaled), all >= 0
+    split = np.column_stack([a[:, 0], a[:, 1], -a[:, 1], a[:, 2]])
+    slope4 = np.column_stack([slope[:, 0], slope[:, 1], -slope[:, 1], slope[:, 2]])
+    small = linprog(np.ones(4), A_ub=np.vstack([split, -split, slope4]),
+                    b_ub=np.r_[y + worst, -y + worst, np.zeros(dd.size)], bounds=[(0, None)] * 4, method="highs")
+    x = res.x[:3] if not small.success else np.array([small.x[0], small.x[1] - small.x[2], small.x[3]])
+    p = x / scale
     return p, float(np.max(np.abs(basis @ p - y)))
 
 
@@ -124,16 +146,24 @@ def fit_deadband(u: np.ndarray, target: np.ndarray, lo: float, hi: float) -> tup
     def solve(e: float) -> tuple[np.ndarray, float]:
         return _minimax(np.maximum(u - e, 0.0), target)
 
+    def score(e: float) -> float:
+        # the worst error is often flat over a range of edges, where the search would stop
+        # wherever rounding led it; DEADBAND_TIE times the RMS error picks one edge there
+        d = np.maximum(u - e, 0.0)
+        p, worst = solve(e)
+        rms = math.sqrt(float(np.mean((d * (p[0] + d * (p[1] + d * p[2])) - target) ** 2)))
+        return worst + DEADBAND_TIE * rms
+
     edges = np.linspace(lo, hi, 13)
-    errs = [solve(e)[1] for e in edges]
-    i = int(np.argmin(errs))
+    scores = [score(e) for e in edges]
+    i = int(np.argmin(scores))
     a, b = edges[max(i - 1, 0)], edges[min(i + 1, len(edges) - 1)]
-    best_e, best_err = float(edges[i]), errs[i]
+    best_e, best = float(edges[i]), scores[i]
     if b > a:
-        res = minimize_scalar(lambda e: solve(e)[1], bounds=(a, b), method="bounded",
-                              options={"xatol": 1e-5 * max(hi - lo, 1e-9)})
-        if res.fun < best_err:
-            best_e, best_err = float(res.x), float(res.fun)
+        res = minimize_scalar(score, bounds=(a, b), method="bounded",
+                              options={"xatol": DEADBAND_XTOL * max(hi - lo, 1e-9)})
+        if res.fun < best:
+            best_e = float(res.x)
     p, err = solve(best_e)
     return best_e, p, err
 

@@ -84,7 +84,19 @@ N_RANDOM_STARTS = 2
 #: ranges the corpus' muscles stay below it but gait2392's quadratus femoris (12.4).
 FIT_FORCE_CAP = 10.0
 
-# Bounds of the fitted parameters: range[0], range width, lmin, lmax, fpmax.
+#: The length fit's prior: each parameter's distance from its start (MuJoCo's defaults, the range
+#: from OpenSim's tendon slack and optimal fiber length), one x_scale unit of it counted as this
+#: RMS error (max isometric forces). A muscle whose length varies little leaves lmin, lmax and
+#: fpmax undetermined (MoBL-ARMS's EPL spans 3.6 mm): without it the solver stopped anywhere in
+#: that flat valley, where rounding put it (EPL's lmin 0.37 under one BLAS, 0.87 under another,
+#: at the same error), and the same model converted on two machines had different muscles.
+FIT_PRIOR = 1e-5
+#: The length fit's tolerances (scipy's ftol, xtol, gtol) and evaluation budget per start.
+FIT_TOL = 1e-10
+FIT_MAX_NFEV = 400
+
+# Bounds of the fitted parameters: range[0], range width, lmin, lmax, fpmax; and their scales.
+_X_SCALE = np.array([0.1, 0.1, 0.1, 0.1, 0.3])
 _LOWER = np.array([0.0, 1e-3, 0.0, 1.0 + 1e-4, 1e-3])
 _UPPER = np.array([4.0, 8.0, 1.0 - 1e-4, 6.0, 100.0])
 
@@ -280,11 +292,25 @@ def _fit_length(t: MuscleSample, cap: float) -> tuple[np.ndarray, np.ndarray, fl
     s = (lengths - t.lengthrange[0]) / max(MJMINVAL, t.lengthrange[1] - t.lengthrange[0])
     args = (s, ya, yp, ma, mp, t.min_activation, cap)
 
+    x_start = _start_point(t)
+    # the prior's residuals: each parameter's distance from the start, in x_scale units, counted as
+    # FIT_PRIOR max isometric forces at every sample (see FIT_PRIOR)
+    n_fit = max(1, int(ma.sum() + mp.sum()))
+    prior = FIT_PRIOR * math.sqrt(n_fit) / _X_SCALE
+
+    def residuals(x, *a):
+        return np.concatenate([_residuals(x, *a), prior * (x - x_start)])
+
+    def jacobian(x, *a):
+        return np.vstack([_jacobian(x, *a), np.diag(prior)])
+
     def cost(x):
-        r = _residuals(x, *args)
+        r = residuals(x, *args)
         return float(r @ r)
 
-    x_start = _start_point(t)
+    def data_cost(x):
+        r = _residuals(x, *args)
+        return float(r @ r)
     default = np.clip(np.array([MUJOCO_DEFAULTS["range"][0], MUJOCO_DEFAULTS["range"][1] - MUJOCO_DEFAULTS["range"][0],
                                 MUJOCO_DEFAULTS["lmin"], MUJOCO_DEFAULTS["lmax"], MUJOCO_DEFAULTS["fpmax"]]),
                       _LOWER, _UPPER)
@@ -299,20 +325,18 @@ def _fit_length(t: MuscleSample, cap: float) -> tuple[np.ndarray, np.ndarray, fl
         x[4] = math.exp(rng.uniform(math.log(0.1), math.log(10.0)))
         starts.append(np.clip(x, _LOWER, _UPPER))
     best, best_cost = x_start, cost(x_start)
-    start_cost = best_cost
     if ma.any() or mp.any():
         for x0 in starts:
             try:
-                res = least_squares(_residuals, x0, jac=_jacobian, bounds=(_LOWER, _UPPER), args=args,
-                                    method="trf", x_scale=np.array([0.1, 0.1, 0.1, 0.1, 0.3]), max_nfev=200,
-                                    ftol=1e-6, xtol=1e-6, gtol=1e-6)
+                res = least_squares(residuals, x0, jac=jacobian, bounds=(_LOWER, _UPPER), args=args,
+                                    method="trf", x_scale=_X_SCALE, max_nfev=FIT_MAX_NFEV,
+                                    ftol=FIT_TOL, xtol=FIT_TOL, gtol=FIT_TOL)
             except ValueError:
                 continue
             c = cost(res.x)
             if c < best_cost:
                 best, best_cost = res.x, c
-    n = max(1, int(ma.sum() + mp.sum()))
-    return best, x_start, 100 * math.sqrt(best_cost / n), 100 * math.sqrt(start_cost / n)
+    return best, x_start, 100 * math.sqrt(data_cost(best) / n_fit), 100 * math.sqrt(data_cost(x_start) / n_fit)
 
 
 @functools.lru_cache(maxsize=64)
