@@ -53,6 +53,7 @@ from o2m.paper.fitting import (
     save_fit,
 )
 from o2m.paper.force_fit import ForceFit, fit_forces, sample_states, static_curves
+from o2m.paper.model_key import model_structure, model_values, same_values
 
 __all__ = ["Experiment", "FULL", "QUICK", "Settings", "joint_mae", "load_experiment", "run_paper"]
 
@@ -60,6 +61,8 @@ DATA_DIR = Path("data/mobl_arms")
 #: Under the data folder: excitation sets drawn with another seed (2026) and their OpenSim runs,
 #: never used in any fit (``make_dataset(DATA_DIR / FRESH_DIR, n_sets=8, seed=2026)``).
 FRESH_DIR = "fresh_seed2026"
+#: Prefix of the model's float values (o2m.paper.model_key) stored in a corrections cache.
+_VALUE = "model."
 
 
 @dataclass(frozen=True)
@@ -292,17 +295,20 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
     (n_sets, n_dofs) rad, the mean absolute correction per set and muscle (n_sets, n_muscles),
     and the corrected trajectories of the first ``keep`` sets (all if None), (keep, T, n_dofs).
     With ``cache`` (an .npz file) they are
-    loaded from there when it holds the corrections of this very model (every field of the
-    compiled model hashed), sets and budget, unless ``refit``; otherwise computed and saved there.
+    loaded from there when it holds the corrections of this model (its structure hashed, its
+    float values the same up to rounding: :mod:`o2m.paper.model_key`), sets and budget, unless
+    ``refit``; otherwise computed and saved there, with the model's values.
     """
     from tqdm.auto import tqdm
 
     from o2m.paper.corrections import fit_corrections
 
     key = correction_key(model, sets, settings, force_start, keep, method)
+    values = model_values(model)
     if cache is not None and Path(cache).exists() and not refit:
         with np.load(cache) as z:
-            if str(z["key"]) == key:
+            stored = {k[len(_VALUE):]: z[k] for k in z.files if k.startswith(_VALUE)}
+            if str(z["key"]) == key and same_values(stored, values):
                 return z["err"], z["size"], z["q"]
     err, size, q = [], [], []
     for i in tqdm(sets, desc="corrections", unit="set", disable=not progress):
@@ -316,42 +322,20 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
     # float32 trajectories, as cached, so a run that computes them writes what a run that loads them does
     out = np.array(err), np.array(size), np.array(q[:keep], dtype=np.float32)
     if cache is not None:
-        np.savez_compressed(cache, key=key, err=out[0], size=out[1], q=out[2])
+        np.savez_compressed(cache, key=key, err=out[0], size=out[1], q=out[2],
+                            **{_VALUE + k: v for k, v in values.items()})
     return out
 
 
 def correction_key(model: mujoco.MjModel, sets: list[int], settings: Settings, force_start: bool,
                    keep: int | None = None, method: str = "cma") -> str:
-    """What a set of corrections depends on: the compiled model (:func:`model_fingerprint`), the
-    sets, the method and the budget."""
+    """What a set of corrections depends on, but the model's float values (:mod:`o2m.paper.model_key`):
+    the compiled model's structure, the sets, the method and the budget."""
     budget = (list(map(int, sets)), settings.correction_generations, settings.correction_sweeps, settings.seed,
               force_start, keep)
     if method != "cma":  # CMA-ES's keys are those written before the method was a choice
         budget = (*budget[:1], method, settings.correction_iterations, *budget[2:])
-    return model_fingerprint(model) + json.dumps(budget)
-
-
-def model_fingerprint(model: mujoco.MjModel) -> str:
-    """sha256 of every array, name and option of the compiled ``model`` but its asset file paths:
-    MuJoCo keeps those absolute, so they name the folder the model was converted into, and the
-    same model converted into another clone would not find its cached corrections."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    for name in sorted(dir(model)):
-        if name.startswith("_") or name == "paths" or name.endswith("pathadr"):
-            continue
-        value = getattr(model, name)
-        if isinstance(value, bytes | np.ndarray):
-            digest.update(name.encode())
-            digest.update(value if isinstance(value, bytes) else np.ascontiguousarray(value).tobytes())
-    for struct in (model.opt, model.stat, model.vis.global_):
-        for name in sorted(dir(struct)):
-            value = getattr(struct, name)
-            if not name.startswith("_") and isinstance(value, int | float | np.ndarray):
-                digest.update(name.encode())
-                digest.update(np.asarray(value).tobytes())
-    return digest.hexdigest()
+    return model_structure(model) + json.dumps(budget)
 
 
 def load_fresh_experiment(data_dir: Path, model_dir: str | os.PathLike[str], *,
