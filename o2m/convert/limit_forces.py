@@ -95,8 +95,8 @@ def motion_type(skel: Skeleton, coordinate: str) -> str:
 
 #: How far above the minimax error (relative) :func:`_minimax` looks for its smallest coefficients.
 MINIMAX_SLACK = 1e-6
-#: :func:`fit_deadband` locates its edge to this fraction of the searched interval. At 1e-5 the
-#: search stopped where rounding led it: a ligament's stiffness 2e-5 apart on two machines.
+#: :func:`fit_deadband` locates its edge to this fraction of the searched interval: closely enough
+#: that two machines' roundings give the same spring.
 DEADBAND_XTOL = 1e-10
 #: Weight of the RMS error beside the worst error when :func:`fit_deadband` chooses its edge.
 DEADBAND_TIE = 1e-3
@@ -122,8 +122,8 @@ def _minimax(d: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     if not res.success:
         return np.zeros(3), float(np.max(np.abs(y)))
     # The minimax optimum is often a face, not a point, and the vertex the solver returns then
-    # depends on rounding (two machines gave a ligament stiffness 2.4e-4 apart at the same error):
-    # among the coefficients within MINIMAX_SLACK of the optimum, take the smallest (scaled) ones.
+    # depends on rounding (docs/conversion.md, "Fits with a flat optimum"): among the
+    # coefficients within MINIMAX_SLACK of the optimum, take the smallest (scaled) ones.
     worst = res.x[3] * (1.0 + MINIMAX_SLACK) + 1e-12 * max(float(np.max(np.abs(y))), 1e-300)
     # variables a, b+, b-, c (scaled), all >= 0
     split = np.column_stack([a[:, 0], a[:, 1], -a[:, 1], a[:, 2]])

@@ -87,9 +87,9 @@ FIT_FORCE_CAP = 10.0
 #: The length fit's prior: each parameter's distance from its start (MuJoCo's defaults, the range
 #: from OpenSim's tendon slack and optimal fiber length), one x_scale unit of it counted as this
 #: RMS error (max isometric forces). A muscle whose length varies little leaves lmin, lmax and
-#: fpmax undetermined (MoBL-ARMS's EPL spans 3.6 mm): without it the solver stopped anywhere in
-#: that flat valley, where rounding put it (EPL's lmin 0.37 under one BLAS, 0.87 under another,
-#: at the same error), and the same model converted on two machines had different muscles.
+#: fpmax nearly undetermined; without a prior the solver stops anywhere in that flat valley, where
+#: rounding puts it, and one model converted on two machines gets two sets of muscles
+#: (docs/conversion.md, "Fits with a flat optimum").
 FIT_PRIOR = 1e-5
 #: The length fit's tolerances (scipy's ftol, xtol, gtol) and evaluation budget per start.
 FIT_TOL = 1e-10
