@@ -273,8 +273,7 @@ class _Evaluator:
             rows_j[k] = d.ten_J[adr:adr + nnz]
         jac = np.zeros((n, m.nv))
         jac[:, m.ten_J_colind[adr:adr + nnz]] = rows_j
-        dv = t.dv[rows]
-        arm = np.array([-(dv[k] @ jac[k]) for k in range(n)]).reshape(n, dv.shape[1])
+        arm = -np.matmul(t.dv[rows], jac[:, :, None])[:, :, 0]  # (n, nc): each pose's dv @ jac
         self.evaluations += 1
         return length - t.length[rows], arm - t.arm[rows]
 
