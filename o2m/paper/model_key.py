@@ -3,9 +3,8 @@
 A result computed for one model (the paper's corrective controls, minutes per excitation set) is
 reused for the same model. "The same" cannot mean bit for bit: the conversion's fits round
 differently under another BLAS, so the same ``.osim`` converted on two machines gives float
-arrays a few units in the last place apart, and some fitted values (a ligament's stiffness) a
-few 1e-5 apart. A sha256 of the arrays then misses a cache that is valid. So a model is
-identified by two things:
+arrays that agree only to rounding (and to a fit's tolerance), and a sha256 of the arrays then
+misses a cache that is valid. So a model is identified by two things:
 
 - :func:`model_structure`: a sha256 of everything that is not a measured float (integer and text
   arrays, the shapes of the float arrays, the options set in the XML);
