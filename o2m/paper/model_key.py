@@ -24,7 +24,8 @@ from collections.abc import Mapping
 import mujoco
 import numpy as np
 
-__all__ = ["FIELD_ATOL", "FIELD_RTOL", "MAX_COMPARED", "model_structure", "model_values", "same_values"]
+__all__ = ["FIELD_ATOL", "FIELD_RTOL", "MAX_COMPARED", "model_structure", "model_values", "same_values",
+           "value_difference"]
 
 #: Two values of a float array are the same within this fraction of their magnitude. A real edit
 #: of a model changes a value by more; rounding between machines changes fitted values by less.
@@ -82,18 +83,26 @@ def model_values(model: mujoco.MjModel) -> dict[str, np.ndarray]:
 def same_values(stored: Mapping[str, np.ndarray], values: Mapping[str, np.ndarray]) -> bool:
     """Whether two :func:`model_values` are the same fields of the same shapes, each value within
     :data:`FIELD_RTOL` of its magnitude or :data:`FIELD_ATOL` of its array's largest magnitude."""
+    return value_difference(stored, values) is None
+
+
+def value_difference(stored: Mapping[str, np.ndarray], values: Mapping[str, np.ndarray]) -> str | None:
+    """Where two :func:`model_values` differ beyond rounding (the first field, in words), or None
+    when they are the same model (:func:`same_values`)."""
     if set(stored) != set(values):
-        return False
+        return f"other fields ({', '.join(sorted(set(stored) ^ set(values))[:3])})"
     for name, a in values.items():
         b = np.asarray(stored[name], dtype=np.float64)
         if a.shape != b.shape:
-            return False
+            return f"{name}: shape {b.shape} -> {a.shape}"
         if a.size == 0:
             continue
         ok = np.isfinite(a)
         if not (np.array_equal(ok, np.isfinite(b)) and np.array_equal(a[~ok], b[~ok], equal_nan=True)):
-            return False
+            return f"{name}: other non-finite values"
         scale = float(np.max(np.abs(a[ok]), initial=0.0))
-        if np.any(np.abs(a[ok] - b[ok]) > FIELD_RTOL * np.abs(a[ok]) + FIELD_ATOL * scale):
-            return False
-    return True
+        off = np.abs(a[ok] - b[ok]) - (FIELD_RTOL * np.abs(a[ok]) + FIELD_ATOL * scale)
+        if np.any(off > 0):
+            k = int(np.argmax(off))
+            return f"{name}: {b[ok][k]:.6g} -> {a[ok][k]:.6g}"
+    return None

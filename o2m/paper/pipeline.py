@@ -32,6 +32,7 @@ from __future__ import annotations
 import json
 import os
 import time
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -53,7 +54,7 @@ from o2m.paper.fitting import (
     save_fit,
 )
 from o2m.paper.force_fit import ForceFit, fit_forces, sample_states, static_curves
-from o2m.paper.model_key import model_structure, model_values, same_values
+from o2m.paper.model_key import model_structure, model_values, value_difference
 
 __all__ = ["Experiment", "FULL", "QUICK", "Settings", "joint_mae", "load_experiment", "run_paper"]
 
@@ -308,8 +309,12 @@ def correct_sets(exp: Experiment, model: mujoco.MjModel, sets: list[int], *, set
     if cache is not None and Path(cache).exists() and not refit:
         with np.load(cache) as z:
             stored = {k[len(_VALUE):]: z[k] for k in z.files if k.startswith(_VALUE)}
-            if str(z["key"]) == key and same_values(stored, values):
+            why = "another model structure, sets or budget" if str(z["key"]) != key else \
+                value_difference(stored, values)
+            if why is None:
                 return z["err"], z["size"], z["q"]
+        warnings.warn(f"{cache} holds the corrections of another model or budget ({why}): computing them "
+                      f"again for {len(sets)} sets", stacklevel=2)
     err, size, q = [], [], []
     for i in tqdm(sets, desc="corrections", unit="set", disable=not progress):
         r = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp.muscles, exp.reference[i],

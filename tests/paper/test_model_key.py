@@ -5,7 +5,7 @@ import copy
 import mujoco
 import numpy as np
 
-from o2m.paper.model_key import FIELD_RTOL, model_structure, model_values, same_values
+from o2m.paper.model_key import FIELD_RTOL, model_structure, model_values, same_values, value_difference
 
 MODEL = """
 <mujoco><worldbody><body pos="0 0 1"><joint name="j" type="hinge" damping="0.5"/>
@@ -30,6 +30,8 @@ def test_a_value_changed_beyond_the_tolerance_is_another_model():
     other = copy.copy(m)
     other.dof_damping[0] *= 1 + 10 * FIELD_RTOL
     assert not same_values(model_values(m), model_values(other))
+    changed = f"dof_damping: 0.5 -> {0.5 * (1 + 10 * FIELD_RTOL):.6g}"
+    assert value_difference(model_values(m), model_values(other)) == changed
     small = copy.copy(m)
     small.body_mass[1] *= 1 + 10 * FIELD_RTOL  # relative to the value itself, not to the array's largest
     assert not same_values(model_values(m), model_values(small))

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 
 import mujoco
 import numpy as np
+import pytest
 
 from o2m.mj.simulate import initial_state
 from o2m.paper.model_key import model_values, same_values
@@ -68,7 +69,9 @@ def test_corrections_computed_equal_corrections_loaded_from_the_cache(tmp_path):
     for a, b in zip(computed, loaded, strict=True):
         assert a.dtype == b.dtype and np.array_equal(a, b)
     # another method is another key: the cache is recomputed, then reused
-    lm = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache, method="lm")
+    with pytest.warns(UserWarning, match="budget"):
+        lm = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache,
+                          method="lm")
     assert not np.array_equal(lm[0], computed[0])
     lm_loaded = correct_sets(exp, model, [0], settings=settings, force_start=False, progress=False, cache=cache,
                              method="lm")
@@ -99,7 +102,8 @@ def test_corrections_cache_holds_for_the_model_rounded_otherwise_not(tmp_path, m
     assert len(calls) == 1 and np.array_equal(first[0], again[0])
     edited = copy.copy(model)
     edited.body_mass[1] *= 1 + 1e-3
-    correct_sets(exp, edited, [0], settings=settings, force_start=False, progress=False, cache=cache)
+    with pytest.warns(UserWarning, match="body_mass"):  # says why it takes minutes again
+        correct_sets(exp, edited, [0], settings=settings, force_start=False, progress=False, cache=cache)
     assert len(calls) == 2
 
 
