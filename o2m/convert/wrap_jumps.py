@@ -14,7 +14,6 @@ that does not flip.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from typing import Any
 
@@ -64,37 +63,33 @@ def segment_jumps(model: mujoco.MjModel, qpos: np.ndarray, *, tendon: int = 0,
     return found
 
 
-def count_flips(osim_path: str | os.PathLike, xml: str, fits: Sequence[Any]) -> None:
+def count_flips(osim_path: str | os.PathLike, xml_path: str | os.PathLike, fits: Sequence[Any]) -> None:
     """Set each fit's ``flips``: how many of its ``jumps`` (:func:`segment_jumps`) OpenSim's path
     does not share. OpenSim's length at a jump's two samples (its independent coordinates read
     from MuJoCo's joints of the same names) shares the jump when it changes by the MuJoCo jump's
     :data:`SHARED_FRACTION` or more beyond MuJoCo's smooth change; a sample OpenSim cannot
-    assemble counts as shared (no reference there). ``xml``: MJCF text of the model the fits'
-    poses are of."""
+    assemble counts as shared (no reference there). ``xml_path``: the MJCF file of the model the
+    fits' poses are of."""
     if not any(f.jumps for f in fits):
         return
     from o2m.mj.posing import joint_qpos_address
     from o2m.osim.pair import ModelPair
 
-    with tempfile.TemporaryDirectory(prefix="o2m-flips-") as tmp:
-        path = os.path.join(tmp, "model.xml")
-        with open(path, "w") as fh:
-            fh.write(xml)
-        pair = ModelPair(osim_path, path)
-        adr = {c: joint_qpos_address(pair.mj_model, c) for c in pair.indep_names}
-        col = {n: i for i, (n, _, _) in enumerate(pair.matched)}
+    pair = ModelPair(osim_path, os.fspath(xml_path))
+    adr = {c: joint_qpos_address(pair.mj_model, c) for c in pair.indep_names}
+    col = {n: i for i, (n, _, _) in enumerate(pair.matched)}
 
-        def length(q: list[float], tendon: str) -> float | None:
-            try:
-                return float(pair.os_lengths(pair.os_state({c: q[a] for c, a in adr.items()}))[col[tendon]])
-            except Exception:  # noqa: BLE001 - OpenSim cannot assemble there: no reference
-                return None
+    def length(q: list[float], tendon: str) -> float | None:
+        try:
+            return float(pair.os_lengths(pair.os_state({c: q[a] for c, a in adr.items()}))[col[tendon]])
+        except Exception:  # noqa: BLE001 - OpenSim cannot assemble there: no reference
+            return None
 
-        for f in fits:
-            if f.tendon not in col:
-                continue
-            f.flips = sum(not opensim_shares(length(j["before"], f.tendon), length(j["after"], f.tendon), j)
-                          for j in f.jumps)
+    for f in fits:
+        if f.tendon not in col:
+            continue
+        f.flips = sum(not opensim_shares(length(j["before"], f.tendon), length(j["after"], f.tendon), j)
+                      for j in f.jumps)
 
 
 def opensim_shares(before: float | None, after: float | None, jump: dict[str, Any]) -> bool:

@@ -451,17 +451,17 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
             _, extra = fit_targets(os.fspath(osim_path), path, list(by_tendon), n_valid, seed + VALIDATION_SEED,
                                    held, None, 0, designed, n_arms=0)
             targets = with_validation(targets, extra)
-    tasks = []
-    for tendon, geoms in by_tendon.items():
-        tg = targets.get(tendon)
-        if tg is None or tg.get("n_arms", len(tg["qpos"])) < 2:
-            continue
-        for variant in with_kinds((variants or {}).get(tendon) or whole_and_straight(geoms), geoms):
-            tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, tg.get("n_arms", len(tg["qpos"])) - 1),
-                               tendon_seed(seed, tendon), budget, list((vias or {}).get(tendon, [])),
-                               int(sizes["starts"] if starts is None else starts)))
-    fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
-    count_flips(osim_path, reduced_xml(xml), fitted)
+        tasks = []
+        for tendon, geoms in by_tendon.items():
+            tg = targets.get(tendon)
+            if tg is None or tg.get("n_arms", len(tg["qpos"])) < 2:
+                continue
+            for variant in with_kinds((variants or {}).get(tendon) or whole_and_straight(geoms), geoms):
+                tasks.append(_task(tendon, xml, geoms, tg, variant, min(n_fit, tg.get("n_arms", len(tg["qpos"])) - 1),
+                                   tendon_seed(seed, tendon), budget, list((vias or {}).get(tendon, [])),
+                                   int(sizes["starts"] if starts is None else starts)))
+        fitted = map_with_progress(_fit_one, tasks, workers=workers, desc="wrap fit", progress=progress)
+        count_flips(osim_path, path, fitted)  # the reduced model the targets were drawn on
     results: dict[str, list[PathFit]] = {}
     for res in fitted:
         results.setdefault(res.tendon, []).append(res)
