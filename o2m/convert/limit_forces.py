@@ -150,7 +150,7 @@ def fit_deadband(u: np.ndarray, target: np.ndarray, lo: float, hi: float) -> tup
         # the worst error is often flat over a range of edges, where the search would stop
         # wherever rounding led it; DEADBAND_TIE times the RMS error picks one edge there
         d = np.maximum(u - e, 0.0)
-        p, worst = solve(e)
+        p, worst = _minimax(d, target)
         rms = math.sqrt(float(np.mean((d * (p[0] + d * (p[1] + d * p[2])) - target) ** 2)))
         return worst + DEADBAND_TIE * rms
 
