@@ -47,6 +47,7 @@ from o2m.convert.contact_fit import (
     SPEEDS,
     STOPPED,
     HuntCrossley,
+    Impact,
     Surface,
     fit_linear,
     measure_impacts,
@@ -382,6 +383,10 @@ def _impact_records(force: str, rows: list[tuple[ContactPair, list]], gravity: f
     hc_e = [hc.restitution for _, ms in rows for _, hc, _ in ms]
     mj_e = [mj.restitution for _, ms in rows for _, _, mj in ms]
     peak = max(abs(mj.peak / hc.peak - 1) for hc, mj in triples)
+    stays = sum(hc.stays for hc, _ in triples), sum(mj.stays for _, mj in triples)
+    if any(stays):  # gravity holds the body on the surface: no rebound, no end of contact
+        where += (f"; the body stays on the surface at {stays[0]} of {len(triples)} impacts in Hunt-Crossley, "
+                  f"{stays[1]} in MuJoCo")
     return [
         Approximation(element, force, IMPACT_PEAK, 100 * peak, "%",
                       f"{where}; resting penetration off by up to {100 * resting:.3g} %"),
@@ -390,7 +395,15 @@ def _impact_records(force: str, rows: list[tuple[ContactPair, list]], gravity: f
                       f"{where}; Hunt-Crossley {min(hc_e):.3g}-{max(hc_e):.3g}, MuJoCo {min(mj_e):.3g}-{max(mj_e):.3g} "
                       "(a spring-damper's restitution does not fall with speed)"),
         Approximation(element, force, IMPACT_DURATION,
-                      100 * max(abs(mj.duration / hc.duration - 1) for hc, mj in triples), "%", where)]
+                      100 * max(_duration_error(hc, mj) for hc, mj in triples), "%", where)]
+
+
+def _duration_error(hc: Impact, mj: Impact) -> float:
+    """MuJoCo's contact time relative to Hunt-Crossley's, less 1 (0 where both stay on the
+    surface, ``inf`` where only one does)."""
+    if hc.stays and mj.stays:
+        return 0.0
+    return math.inf if hc.stays or mj.stays else abs(mj.duration / hc.duration - 1)
 
 
 def _fall_records(force: str, rows: list[tuple[ContactPair, list]]) -> list[Approximation]:

@@ -164,11 +164,17 @@ class Slide:
 
 @dataclass(frozen=True)
 class Impact:
-    """One impact: peak penetration (m), coefficient of restitution, contact duration (s)."""
+    """One impact: peak penetration (m), coefficient of restitution, contact duration (s). A body
+    that stays on the surface (gravity holding it) has restitution 0 and duration ``inf``."""
 
     peak: float
     restitution: float
     duration: float
+
+    @property
+    def stays(self) -> bool:
+        """Whether the body never left the surface."""
+        return math.isinf(self.duration)
 
 
 def _touchdown(t: float, y: np.ndarray) -> float:
@@ -180,13 +186,17 @@ _touchdown.direction = -1.0
 
 
 def _integrate(rhs, t_max: float) -> Impact:
+    """The impact from touch-down at unit speed until the body leaves the surface; one that has not
+    left by ``t_max`` stays on it (:attr:`Impact.stays`): under gravity a dissipative contact can
+    take all of the rebound's energy, so the body settles at its resting penetration."""
     sol = solve_ivp(rhs, (0.0, t_max), [0.0, 1.0], events=_touchdown, rtol=1e-10, atol=1e-13, max_step=t_max / 400,
                     dense_output=True)
-    if not sol.t_events[0].size:
-        raise RuntimeError("the impact did not end")  # cannot happen for a positive stiffness
-    t_end = float(sol.t_events[0][0])
+    left = bool(sol.t_events[0].size)
+    t_end = float(sol.t_events[0][0]) if left else float(sol.t[-1])
     t = np.linspace(0.0, t_end, 2001)
     peak = float(np.max(sol.sol(t)[0]))
+    if not left:
+        return Impact(peak, 0.0, math.inf)
     return Impact(peak, float(-sol.y_events[0][0][1]), t_end)
 
 
@@ -320,13 +330,21 @@ def _probe(contact: LinearContact, law: HuntCrossley, timestep: float, impedance
     return spec.compile()
 
 
+#: Steps after which a MuJoCo probe still on the surface stays there, and the speed (a fraction of
+#: the impact's) below which it has settled once it has stayed that slow for _REST_STEPS steps.
+_MAX_PROBE_STEPS = 200000
+_REST_SPEED = 1e-6
+_REST_STEPS = 1000
+
+
 def _mujoco_impact(model: mujoco.MjModel, speed: float) -> Impact:
-    """Land the probe at ``speed`` (m/s), starting half a step above the surface."""
+    """Land the probe at ``speed`` (m/s), starting half a step above the surface; a probe that
+    settles on it instead of leaving stays (:attr:`Impact.stays`)."""
     data, dt = mujoco.MjData(model), model.opt.timestep
     h0 = 0.5 * speed * dt
     data.qpos[0], data.qvel[0] = h0, -math.sqrt(max(speed ** 2 + 2 * model.opt.gravity[2] * h0, 0.0))
-    x_prev, peak, t_in = -0.5 * speed * dt, 0.0, None
-    for i in range(1, 200001):
+    x_prev, peak, t_in, still = -0.5 * speed * dt, 0.0, None, 0
+    for i in range(1, _MAX_PROBE_STEPS + 1):
         mujoco.mj_step(model, data)
         x = -float(data.qpos[0])  # penetration (m)
         if t_in is None and x > 0.0:
@@ -336,8 +354,11 @@ def _mujoco_impact(model: mujoco.MjModel, speed: float) -> Impact:
             if x <= 0.0:
                 t_out = (i - 1 + x_prev / (x_prev - x)) * dt
                 return Impact(peak, float(data.qvel[0]) / speed, t_out - t_in)
+            still = still + 1 if abs(float(data.qvel[0])) < _REST_SPEED * speed else 0
+            if still >= _REST_STEPS:
+                break  # settled on the surface (gravity holds it)
         x_prev = x
-    raise RuntimeError("the MuJoCo probe did not leave the surface")
+    return Impact(peak, 0.0, math.inf)
 
 
 def measure_impacts(law: HuntCrossley, contact: LinearContact, timestep: float, impedance: tuple[float, ...],

@@ -159,17 +159,20 @@ def _crossing(t: np.ndarray, f: np.ndarray, i: int) -> float:
 
 
 def drop_metrics(trace: Trace, radius: float) -> dict[str, float]:
-    """Time of first contact (s), peak penetration (m), contact duration (s), rebound height (m)."""
+    """Time of first contact (s), peak penetration (m), contact duration (s), rebound height (m).
+    A ball that never leaves the floor (gravity holding it on a damped contact) has duration
+    ``inf`` and rebound height 0."""
     pen = radius - trace.y
     inside = np.flatnonzero(pen > 0)
     if not inside.size:
         raise ValueError("the ball never touches the floor")
     i0 = int(inside[0])
+    t_in = _crossing(trace.times, pen, i0) if i0 > 0 else 0.0
     after = np.flatnonzero(pen[i0:] <= 0)
     if not after.size:
-        raise ValueError("the ball never leaves the floor")
+        return {"contact_time": t_in, "peak_penetration": float(np.max(pen[i0:])), "contact_duration": math.inf,
+                "rebound_height": 0.0}
     i1 = i0 + int(after[0])
-    t_in = _crossing(trace.times, pen, i0) if i0 > 0 else 0.0
     t_out = _crossing(trace.times, pen, i1)
     back = np.flatnonzero(pen[i1:] > 0)
     end = i1 + int(back[0]) if back.size else len(pen)

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from o2m.convert.contact import FALL_DEEPEST, IMPACT_PEAK, IMPACT_RESTITUTION, SLIDE_DISTANCE
+from o2m.convert.contact import FALL_DEEPEST, IMPACT_DURATION, IMPACT_PEAK, IMPACT_RESTITUTION, SLIDE_DISTANCE
 from o2m.convert.contact_fit import SLIDE_SPEED, HuntCrossley, Surface, fit_linear, sliding_friction
 from o2m.convert.contact_smooth import SmoothHuntCrossley
 from o2m.convert.converter import ConvertOptions, convert
@@ -120,6 +120,33 @@ def test_slide_within_recorded_error(ball):
     osim, conv = ball
     c = compare_slide(osim, conv.xml, BALL, SLIDE_SPEED)
     assert abs(c.relative("stop_distance")) <= _recorded(conv, SLIDE_DISTANCE) / 100, c.summary()
+
+
+#: A heavy ball on a soft, strongly damped contact (as the hip and knee contacts of OpenSim's
+#: WalkerModel_ClutchedPathSpring: about 3 kg, dissipation 2 s/m): under gravity the contact takes
+#: the whole rebound, so the ball dropped on the floor stays on it.
+HELD = BallModel(mass=3.0, stiffness=2e6, dissipation=2.0)
+
+
+def test_a_ball_gravity_holds_on_the_floor_stays_there(tmp_path):
+    """OpenSim's ball does not rebound; the conversion measures such impacts (it raised before)
+    and says where the body stays on the surface."""
+    osim = write_ball_model(tmp_path / "held.osim", HELD)
+    conv = convert(osim, tmp_path / "out", FAST)
+    c = compare_drop(osim, conv.xml, HELD, 0.0127)  # impact at 0.5 m/s
+    assert c.opensim["restitution"] == pytest.approx(0.0, abs=1e-3), c.summary()
+    assert c.mujoco["restitution"] == pytest.approx(0.0, abs=1e-3), c.summary()
+    duration = [a for a in conv.report.approximations if a.what == IMPACT_DURATION]
+    assert len(duration) == 1 and "the body stays on the surface at" in duration[0].detail
+    law = HuntCrossley.combine(Surface(HELD.stiffness, HELD.dissipation, HELD.static_friction,
+                                       HELD.dynamic_friction, HELD.viscous_friction),
+                               Surface(HELD.stiffness, HELD.dissipation, HELD.static_friction,
+                                       HELD.dynamic_friction, HELD.viscous_friction),
+                               HELD.radius, HELD.transition_velocity)
+    held, free = law.impact(HELD.mass, 0.5, 9.80665), law.impact(HELD.mass, 0.5)
+    assert held.stays and held.restitution == 0.0 and math.isinf(held.duration)
+    assert not free.stays and 0.0 < free.restitution < 1.0
+    assert held.peak > free.peak > 0.0  # gravity pushes it deeper
 
 
 # -- what the elements become -------------------------------------------------------------------
