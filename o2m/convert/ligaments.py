@@ -144,6 +144,10 @@ def measure_ligaments(out: ForceConversion, model: mujoco.MjModel, builder: Mjcf
         if lig.fit is None:
             continue
         err_pose = _measure_ligament(lig, model, builder)
+        step = lig.pcsa_force * float(np.asarray(lig.curve(np.array([1.0])), dtype=float)[0])
+        floor = (f"; OpenSim's tension steps from 0 to {step:.4g} N at the resting length (its curve is "
+                 f"not 0 at length / resting_length = 1), so no spring is within {abs(step) / 2:.3g} N of it"
+                 if abs(step) > 1e-9 * max(lig.pcsa_force, 1.0) else "")
         result.approximations.append(Approximation(
             lig.element, lig.name,
             f"tension as a tendon spring: dead band to {lig.fit.edge:.6g} m, stiffness "
@@ -151,7 +155,7 @@ def measure_ligaments(out: ForceConversion, model: mujoco.MjModel, builder: Mjcf
             float(max(lig.fit.max_error, err_pose)), "N",
             f"force-length fit over [{lig.length_range[0]:.4g}, {lig.length_range[1]:.4g}] m: worst "
             f"{lig.fit.max_error:.3g} N; MuJoCo's tendon force at {N_POSES} poses: worst {err_pose:.3g} N; "
-            f"{'pcsa_force' if lig.element == 'Ligament' else 'linear_stiffness'} {lig.pcsa_force:g} N"))
+            f"{'pcsa_force' if lig.element == 'Ligament' else 'linear_stiffness'} {lig.pcsa_force:g} N{floor}"))
 
 
 def _measure_ligament(lig: Ligament, model: mujoco.MjModel, builder: MjcfBuilder) -> float:

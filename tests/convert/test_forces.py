@@ -609,3 +609,39 @@ def test_linear_expression_forces_match_opensim(tmp_path):
         expected = -12 * q - 0.4 * v + 3 + 2.5 * (0.2 - q) - v / 4
         assert tau_os == pytest.approx(expected, abs=1e-8)  # OpenSim applies what the expressions say
         assert d.qfrc_passive[0] == pytest.approx(tau_os, abs=1e-8)
+
+
+def test_ligament_whose_curve_steps_at_rest_says_so(tmp_path):
+    """A Ligament curve tabulated over strain (OpenSim 2's reading; 4.x reads length / resting
+    length, so the curve is 1 at rest): OpenSim's tension steps from 0 to pcsa_force there. The
+    report names the step, and the measured error is at least half of it, as no spring can do better."""
+    m = osim.Model()
+    m.setName("ligament_step")
+    body = osim.Body("b", 1.0, _v(0, 0, 0), osim.Inertia(0.01, 0.01, 0.01))
+    m.addBody(body)
+    joint = osim.SliderJoint("j", m.getGround(), body)
+    m.addJoint(joint)
+    c = joint.upd_coordinates(0)
+    c.setName("q")
+    c.setRangeMin(-0.05)
+    c.setRangeMax(0.05)
+    lig = osim.Ligament()
+    lig.setName("lig")
+    lig.updGeometryPath().appendNewPathPoint("lig-P1", m.getGround(), _v(-0.1, 0, 0))
+    lig.updGeometryPath().appendNewPathPoint("lig-P2", body, _v(0, 0, 0))
+    lig.set_pcsa_force(200.0)
+    lig.set_resting_length(0.1)
+    curve = osim.SimmSpline()
+    for x, y in [(-1.0, 0.0), (0.0, 0.0), (0.1, 0.5), (1.0, 1.0)]:
+        curve.addPoint(x, y)
+    lig.set_force_length_curve(curve)
+    m.addForce(lig)
+    m.finalizeConnections()
+    path = tmp_path / "ligament_step.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options(quick=True))
+    a = _approx(conv.report, "Ligament", "lig")
+    step = 200.0 * curve.calcValue(osim.Vector(1, 1.0))
+    assert step == pytest.approx(200.0, rel=1e-6)
+    assert f"steps from 0 to {step:.4g} N at the resting length" in a.detail
+    assert a.max_error >= 0.45 * step  # half the step, less what the poses' sampling misses
