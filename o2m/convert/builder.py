@@ -350,18 +350,23 @@ class MjcfBuilder:
                 dofs[joint.child, kind] = sum(k == kind for _, k in moving + complements)
             for ax, kind in moving:
                 name, is_coord = self._mj_joint_name(joint, ax)
-                if is_coord and self.drivers[ax.coordinate].base == ax.coordinate:
-                    continue
-                driver = self.drivers[ax.coordinate] if is_coord else self._axis_driver(ax)
-                base = driver.base
-                if base not in self.coord_joint:
-                    continue  # couple() reports it
-                ref = ax.value(q0)
-                lo, hi = self.coupling_range(base)
-                rel = relative(driver, ref)
-                if as_linear(rel, lo, hi) is None:
-                    out.append(CoupledAxis(name, joint.child, kind, base, rel))
+                axes = [] if is_coord and self.drivers[ax.coordinate].base == ax.coordinate else \
+                    [(name, self.drivers[ax.coordinate] if is_coord else self._axis_driver(ax), ax.value(q0))]
+                if any(c is ax for c, _ in complements):  # its second joint adds f(q) - q (_add_complement)
+                    axes.append((f"{joint.name}_{ax.name}", self._complement_driver(ax),
+                                 ax.value(q0) - self.ref[ax.coordinate]))
+                for joint_name, driver, ref in axes:
+                    if driver.base not in self.coord_joint:
+                        continue  # couple() reports it
+                    lo, hi = self.coupling_range(driver.base)
+                    rel = relative(driver, ref)
+                    if as_linear(rel, lo, hi) is None:
+                        out.append(CoupledAxis(joint_name, joint.child, kind, driver.base, rel))
         return out, dofs
+
+    def _complement_driver(self, ax: TransformAxis) -> Driver:
+        """What the complement joint of coordinate axis ``ax`` carries, f(q) - q, from the base coordinate."""
+        return self.drivers[ax.coordinate].then(lambda q, fn=ax.function: _rest(fn, q))
 
     def coupling_fit(self, joint: str) -> AxisFit | None:
         """The fit of skeleton coupled joint ``joint`` (after :meth:`build`): its main joint, outer
@@ -486,7 +491,7 @@ class MjcfBuilder:
         name = f"{joint.name}_{ax.name}"
         rec = self._new_mj_joint(body, name, kind, unit, pos, ref, joint, ax, None)
         self.spec.joint(name).armature = COMPLEMENT_ARMATURE  # until set_complement_armature scales it
-        self.couple(rec, self.drivers[coord].then(lambda q, fn=ax.function: _rest(fn, q)), ref, ax.element)
+        self.couple(rec, self._complement_driver(ax), ref, ax.element, high_order=True)
         self._close_joint(rec)
         self._complements[coord] = (name, ax)
         self.result.notes.append(
