@@ -1,6 +1,10 @@
 """Coordinate, torque, point and point-to-point actuators as MuJoCo motors and transmissions.
 
-* **CoordinateActuator**: a motor on the coordinate's joint, ``gear = optimal_force``.
+* **CoordinateActuator**: a motor on the coordinate's joint, ``gear = optimal_force``. On a
+  rotational coordinate of a Ball, Free or Ellipsoid joint, whose Simbody mobility is an angular
+  velocity component in the joint's parent frame F (not an angle's rate), a site transmission
+  with a refsite at F instead: the torque ``optimal_force`` about F's axis on the child, its
+  opposite on the parent (a motor on the hinge would turn with the hinges before it).
 * **ActivationCoordinateActuator**: the same motor with OpenSim's first-order activation, MuJoCo's
   ``filter`` dynamics: ``act' = (ctrl - act) / activation_time_constant``, force ``gear · act``.
 * **PointToPointActuator**: a motor on a spatial tendon between its two points, ``gear =
@@ -40,6 +44,7 @@ from o2m.convert.force_context import (
     _random_values,
     _text,
     _vector,
+    angular_velocity_coordinate,
 )
 from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
@@ -97,7 +102,8 @@ def _add_actuator(ctx: _Context, el: etree._Element, gear: np.ndarray, **target)
 
 
 def convert_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
-    """CoordinateActuator -> a motor on the coordinate's joint, gear = optimal_force."""
+    """CoordinateActuator -> a motor on the coordinate's joint, gear = optimal_force (a torque about the
+    parent frame's axis on a Ball, Free or Ellipsoid joint's rotation: :func:`_mobility_torque`)."""
     b = ctx.builder
     cname = _coordinate(ctx, el)
     if cname not in b.skel.coordinates:
@@ -106,8 +112,30 @@ def convert_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
         ctx.out.skipped.append(Skipped(el.tag, el.get("name"), f"coordinate '{cname}' is locked, so the actuator "
                                        "cannot move it (no MuJoCo joint)"))
         return
-    gear = np.array([_number(el, "optimal_force", 1.0, ctx), 0, 0, 0, 0, 0])
-    _add_actuator(ctx, el, gear, trntype=mujoco.mjtTrn.mjTRN_JOINT, target=cname)
+    force = _number(el, "optimal_force", 1.0, ctx)
+    mobility = angular_velocity_coordinate(ctx, cname)
+    if mobility is not None and not mobility[0].reversed:
+        _mobility_torque(ctx, el, *mobility, force)
+        return
+    if mobility is not None:
+        ctx.builder.result.notes.append(
+            f"{el.tag} '{el.get('name')}': a motor on hinge '{cname}'; OpenSim's force on this "
+            f"{mobility[0].type} coordinate is a torque about its parent frame's axis, which the hinge "
+            "follows only while the hinges before it are at 0")
+    _add_actuator(ctx, el, np.array([force, 0, 0, 0, 0, 0]), trntype=mujoco.mjtTrn.mjTRN_JOINT, target=cname)
+
+
+def _mobility_torque(ctx: _Context, el: etree._Element, joint, i: int, force: float) -> None:
+    """The actuator of rotational coordinate ``i`` of a Ball, Free or Ellipsoid ``joint``: a torque ``force``
+    (N m per unit control) about axis i of the joint's parent frame F on the child, its opposite on
+    the parent, as Simbody applies a force to that mobility (a site transmission with a refsite at F)."""
+    name = el.get("name")
+    axis = joint.parent_frame.rot[:, i]  # F's axis i in the parent body's frame
+    ref = _body_site(ctx, joint.parent, f"{name}_refsite", joint.parent_frame.pos)
+    site = _body_site(ctx, joint.child, f"{name}_site", joint.child_frame.pos)
+    # MuJoCo puts +R_ref·gear on the site's body (the child); the refsite's frame is the parent body's
+    gear = force * (OSIM_TO_MJ @ axis if joint.parent == "ground" else axis)
+    _add_actuator(ctx, el, np.r_[np.zeros(3), gear], trntype=mujoco.mjtTrn.mjTRN_SITE, target=site, refsite=ref)
 
 
 def convert_activation_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:

@@ -645,3 +645,68 @@ def test_ligament_whose_curve_steps_at_rest_says_so(tmp_path):
     assert step == pytest.approx(200.0, rel=1e-6)
     assert f"steps from 0 to {step:.4g} N at the resting length" in a.detail
     assert a.max_error >= 0.45 * step  # half the step, less what the poses' sampling misses
+
+
+def _ball_actuated(path: Path, joint_type: str) -> Path:
+    """A link on a ``joint_type`` (BallJoint, FreeJoint, GimbalJoint) from a turned frame on ground,
+    no gravity, a CoordinateActuator on each coordinate, at a pose away from 0."""
+    m = osim.Model()
+    m.setName(path.stem)
+    m.setGravity(_v(0, 0, 0))
+    body = osim.Body("link", 1.0, _v(0.05, -0.3, 0.02), osim.Inertia(0.02, 0.015, 0.025, 0.001, -0.002, 0.003))
+    m.addBody(body)
+    joint = getattr(osim, joint_type)("j", m.getGround(), _v(0.1, 0.2, 0), _v(0.3, -0.2, 0.5), body,
+                                      _v(0, 0.1, 0), _v(-0.4, 0.1, 0.2))
+    m.addJoint(joint)
+    for i in range(joint.numCoordinates()):
+        c = joint.upd_coordinates(i)
+        c.setDefaultValue([0.5, -0.7, 0.9, 0.1, 0.2, -0.1][i])
+        act = osim.CoordinateActuator(c.getName())
+        act.setName(f"act_{i}")
+        act.setOptimalForce(2.0)
+        m.addForce(act)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return path
+
+
+@pytest.mark.parametrize("joint_type", ["BallJoint", "FreeJoint", "GimbalJoint"])
+def test_coordinate_actuators_of_ball_and_free_joints_match_opensim(joint_type, tmp_path):
+    """Simbody moves a Ball or Free joint's rotations by the angular velocity's components in the
+    parent frame: a CoordinateActuator there is a torque about the parent frame's axis, not about
+    MuJoCo's turned hinge (a Gimbal's are the angles' rates: a motor on the hinge). The change of
+    the link's angular acceleration when one control goes 0 -> 1, as OpenSim's."""
+    osim_path = _ball_actuated(tmp_path / f"{joint_type}.osim", joint_type)
+    conv = convert(osim_path, tmp_path / "out", convert_options(quick=True))
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    model = osim.Model(str(osim_path))
+    acts = model.getActuators()
+    world = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])  # OpenSim's ground (Y up) in MuJoCo's world (Z up)
+
+    def opensim_acc(k: int, control: float) -> np.ndarray:
+        state = model.initSystem()
+        u = osim.Vector(acts.getSize(), 0.0)
+        u.set(k, control)
+        model.realizeVelocity(state)
+        model.setControls(state, u)
+        model.realizeAcceleration(state)
+        acc = model.getBodySet().get("link").getAccelerationInGround(state)
+        return world @ acc.get(0).to_numpy()  # angular
+
+    def mujoco_acc(name: str, control: float) -> np.ndarray:
+        mujoco.mj_resetDataKeyframe(m, d, m.key("default-pose").id)
+        d.ctrl[:] = 0.0
+        d.ctrl[m.actuator(name).id] = control
+        mujoco.mj_forward(m, d)
+        mujoco.mj_rnePostConstraint(m, d)
+        acc = np.zeros(6)
+        mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_BODY, m.body("link").id, acc, 0)
+        return acc[:3]  # angular (the linear part is about another point)
+
+    for k in range(acts.getSize()):
+        name = acts.get(k).getName()
+        expected = opensim_acc(k, 1.0) - opensim_acc(k, 0.0)
+        got = mujoco_acc(name, 1.0) - mujoco_acc(name, 0.0)
+        assert np.abs(expected).max() > 1.0 or k >= 3, (name, expected)  # a free joint's slides turn nothing
+        np.testing.assert_allclose(got, expected, atol=1e-8 * max(1.0, np.abs(expected).max()), err_msg=name)
