@@ -27,7 +27,7 @@ from o2m.convert.bushing_ghost import ghosts_posed
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE
 from o2m.convert.constraints import add_constraints
 from o2m.convert.coordinates import unenforced_clamps
-from o2m.convert.default_pose import assembled_pose
+from o2m.convert.default_pose import assembled_pose, default_velocity
 from o2m.convert.ellipsoid_standins import record_errors
 from o2m.convert.islands import disable_single_island
 from o2m.convert.lengthvia import add_length_vias
@@ -204,7 +204,8 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
         forces.fit_ligaments(force_conv, spec, model, builder)
         forces.fit_contacts(force_conv, spec, model, builder)
         key_qpos = assembled_pose(model, skel, osim, result, constraint_eqs)
-        spec.add_key(name="default-pose", qpos=key_qpos, act=_default_activations(model, result))
+        key_qvel = default_velocity(model, builder, key_qpos, result)
+        spec.add_key(name="default-pose", qpos=key_qpos, qvel=key_qvel, act=_default_activations(model, result))
         final = spec.compile()
         if disable_single_island(spec, final):
             result.notes.append("constraint islands disabled (<flag island=\"disable\"/>): the degrees of freedom "
@@ -213,7 +214,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
         result.notes += choose_step_options(spec, final, mujoco.__version__)
         xml_path = stage / f"{stem}.xml"
         xml_text = forces.restore_precision(builder.restore_precision(_relative_meshdir(spec.to_xml())), force_conv)
-        xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), key_qpos)
+        xml_text = _default_pose(restore_geom_precision(xml_text, tendons.exact), key_qpos, key_qvel)
         _check_finite(xml_text, osim)
         xml_path.write_text(xml_text)
         written = _load_written(xml_path, osim)
@@ -325,12 +326,15 @@ def _relative_meshdir(xml: str) -> str:
     return mjcf_text.to_text(root)
 
 
-def _default_pose(xml: str, qpos0) -> str:
-    """MJCF text whose ``default-pose`` keyframe holds ``qpos0`` (nq,) in full precision."""
+def _default_pose(xml: str, qpos0, qvel=None) -> str:
+    """MJCF text whose ``default-pose`` keyframe holds ``qpos0`` (nq,) and, if given and not all
+    zero, ``qvel`` (nv,) in full precision."""
     root = mjcf_text.parse(xml)
     for key in root.iter("key"):
         if key.get("name") == "default-pose":
             key.set("qpos", mjcf_text.number_text(qpos0))
+            if qvel is not None and np.any(qvel):
+                key.set("qvel", mjcf_text.number_text(qvel))
     return mjcf_text.to_text(root)
 
 

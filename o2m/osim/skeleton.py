@@ -123,6 +123,9 @@ class Coordinate:
     prescribed: bool
     element: etree._Element
     prescribed_function: Function | None = None
+    #: ``default_speed_value`` (rad/s or m/s; for a Ball, Free or Ellipsoid joint's rotation the
+    #: angular velocity's component about the parent frame's axis, Simbody's mobility).
+    default_speed: float = 0.0
 
 
 @dataclass
@@ -396,6 +399,7 @@ class SkeletonReader:
             name=el.get("name"), joint=joint, default=default, range=(float(lo), float(hi)),
             clamped=_bool(el.find("clamped"), False), locked=locked, prescribed=function is not None,
             element=el, prescribed_function=function,
+            default_speed=float(_floats(el.find("default_speed_value"), 1, self.doc, "default_speed_value", (0.0,))[0]),
         )
 
     def function_of(self, holder: etree._Element, default: Function | None = None) -> Function:

@@ -73,3 +73,65 @@ def test_keyframe_is_qpos0_where_the_defaults_are_assembled(tmp_path):
     m = mujoco.MjModel.from_xml_path(str(conv.xml))
     assert np.array_equal(m.key("default-pose").qpos, m.qpos0)
     assert not any("assembled default state" in n for n in conv.report.notes)
+
+
+def _spinning(path, joint_type: str) -> str:
+    """A link on a ``joint_type`` from a turned ground frame and a pin-jointed tip, every coordinate
+    with a default speed (a Ball's and a Free's rotations: angular velocity components). After a
+    PinJoint the tip's angle is tied to the first by a coupler (0.7 q + 0.1), its default speed
+    consistent with it."""
+    m = osim.Model()
+    m.setName(path.stem)
+    link = osim.Body("link", 1.0, osim.Vec3(0.05, -0.3, 0.02), osim.Inertia(0.02, 0.015, 0.025))
+    tip = osim.Body("tip", 0.5, osim.Vec3(0, -0.2, 0), osim.Inertia(0.01, 0.005, 0.01))
+    m.addBody(link)
+    m.addBody(tip)
+    joint = getattr(osim, joint_type)("j", m.getGround(), osim.Vec3(0.1, 0.2, 0), osim.Vec3(0.3, -0.2, 0.5), link,
+                                      osim.Vec3(0, 0.1, 0), osim.Vec3(-0.4, 0.1, 0.2))
+    pin = osim.PinJoint("pin", link, osim.Vec3(0, -0.5, 0), osim.Vec3(0), tip, osim.Vec3(0, 0.1, 0), osim.Vec3(0))
+    m.addJoint(joint)
+    m.addJoint(pin)
+    for i in range(joint.numCoordinates()):
+        c = joint.upd_coordinates(i)
+        c.setDefaultValue([0.5, -0.7, 0.9, 0.1, 0.2, -0.1][i])
+        c.setDefaultSpeedValue([0.8, -1.5, 2.0, 0.3, -0.2, 0.4][i])
+    tip_q = pin.upd_coordinates(0)
+    tip_q.setName("tip_q")
+    tip_q.setDefaultSpeedValue(1.1)
+    if joint_type == "PinJoint":
+        tip_q.setDefaultValue(0.7 * 0.5 + 0.1)
+        tip_q.setDefaultSpeedValue(0.7 * 0.8)
+        coupler = osim.CoordinateCouplerConstraint()
+        coupler.setName("coupler")
+        coupler.setIndependentCoordinateNames(osim.ArrayStr(joint.get_coordinates(0).getName(), 1))
+        coupler.setDependentCoordinateName("tip_q")
+        coupler.setFunction(osim.LinearFunction(0.7, 0.1))  # exact in MuJoCo, as its derivative
+        m.addConstraint(coupler)
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    return str(path)
+
+
+@pytest.mark.parametrize("joint_type", ["PinJoint", "BallJoint", "FreeJoint"])
+def test_keyframe_holds_opensims_default_speeds(tmp_path, joint_type):
+    """OpenSim's default state moves: the keyframe's qvel gives both links OpenSim's angular and
+    linear velocities (the coupled pin through its equality); it was left at rest."""
+    path = _spinning(tmp_path / f"{joint_type}.osim", joint_type)
+    conv = convert(path, tmp_path / "out", convert_options(quick=True))
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("default-pose").id)
+    mujoco.mj_forward(m, d)
+    model = osim.Model(path)
+    state = model.initSystem()
+    model.realizeVelocity(state)
+    moving = 0
+    for body in ("link", "tip"):
+        v = model.getBodySet().get(body).getVelocityInGround(state)
+        expected = np.r_[OSIM_TO_MJ @ v.get(0).to_numpy(), OSIM_TO_MJ @ v.get(1).to_numpy()]
+        jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        mujoco.mj_jacBody(m, d, jacp, jacr, m.body(body).id)  # at the body frame's origin, as OpenSim's
+        got = np.r_[jacr @ d.qvel, jacp @ d.qvel]
+        moving += np.abs(expected).max() > 0.1
+        np.testing.assert_allclose(got, expected, atol=1e-7, err_msg=body)
+    assert moving == 2
