@@ -217,6 +217,9 @@ class SkeletonReader:
         self.doc = doc
         self.model = doc.model
         self._frames: dict[int, tuple[str, Transform, str]] = {}
+        #: Components read as part of a frame (StationDefinedFrames and their Stations, by ``id``):
+        #: converted there, so not listed as skipped generic components.
+        self._consumed: set[int] = set()
         self.names = CoordinateNames([])
 
     def coordinate_names(self, joints: list[etree._Element]) -> CoordinateNames:
@@ -257,6 +260,7 @@ class SkeletonReader:
             out = (body, x_parent @ Transform(body_fixed_xyz(orient), trans), el.get("name"))
         elif el.tag == "StationDefinedFrame":
             out = self.station_defined_frame(el, _depth)
+            self._consumed.add(key)
         else:
             raise self.doc.error(el, "is used as a frame but is not a Body, Ground, PhysicalOffsetFrame or "
                                      "StationDefinedFrame")
@@ -271,6 +275,7 @@ class SkeletonReader:
         st = self.doc.resolve(sock)
         if st.tag not in ("Station", "Marker"):
             raise self.doc.error(el, f"<{socket}> names a <{st.tag}>, not a Station or Marker")
+        self._consumed.add(id(st))
         parent = st.find("socket_parent_frame")
         if parent is None:
             raise self.doc.error(st, "has no <socket_parent_frame>")
@@ -584,6 +589,8 @@ class SkeletonReader:
                 self.check_known(el)
                 if set_tag == "ForceSet" and el.tag in PATH_TYPES:
                     continue  # paths are read by o2m.osim.paths (other path forces are skipped, listed)
+                if id(el) in self._consumed:
+                    continue  # a frame's part, converted with it
                 reason = SKIP_REASONS[set_tag]
                 if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
                     reason += " (its path too: no tendon, no force)"

@@ -634,3 +634,29 @@ def test_a_path_actuator_pulls_and_a_path_spring_pulls_when_stretched_as_in_open
         mujoco.mj_forward(mj, d)
         theirs = model.getCoordinateSet().get("s_coord_0").getAccelerationValue(state)
         assert d.qacc[0] == pytest.approx(theirs, rel=1e-9, abs=1e-9), x
+
+
+def test_stations_that_define_a_joint_frame_are_not_listed_as_skipped(tmp_path):
+    """Stations and a StationDefinedFrame in the model's <components>, the frame a joint's parent:
+    converted with the joint, so not listed as skipped generic components; a station nothing uses is."""
+    stations = "".join(f'<Station name="s{i}"><socket_parent_frame>/ground</socket_parent_frame>'
+                       f'<location>{x} {y} {z}</location></Station>'
+                       for i, (x, y, z) in enumerate([(0, 1, 0), (0.2, 1, 0), (0, 1.1, 0.1), (0, 1, 0.05)]))
+    src = tmp_path / "sdf.osim"
+    src.write_text(f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40500"><Model name="sdf"><components>{stations}
+<Station name="unused"><socket_parent_frame>/ground</socket_parent_frame><location>0 0 0</location></Station>
+<StationDefinedFrame name="top"><socket_point_a>/s0</socket_point_a><socket_point_b>/s1</socket_point_b>
+<socket_point_c>/s2</socket_point_c><socket_origin_point>/s3</socket_origin_point></StationDefinedFrame>
+</components><Ground name="ground"/>
+<BodySet><objects><Body name="bob"><mass>1</mass><mass_center>0 -0.5 0</mass_center>
+<inertia>0.01 0.01 0.01 0 0 0</inertia></Body></objects></BodySet>
+<JointSet><objects><PinJoint name="pin"><socket_parent_frame>/top</socket_parent_frame>
+<socket_child_frame>/bodyset/bob</socket_child_frame><coordinates><Coordinate name="swing">
+<default_value>0.3</default_value></Coordinate></coordinates></PinJoint></objects></JointSet>
+</Model></OpenSimDocument>
+""")
+    conv = convert(src, tmp_path / "out", convert_options())
+    assert [s.name for s in conv.report.skipped] == ["unused"]
+    rep = compare_kinematics(src, conv.xml, n_poses=10)
+    assert rep.max_pos_error < 1e-9 and rep.max_ang_error < 1e-9, rep.summary()
