@@ -13,6 +13,7 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from lxml import etree
 
 from o2m.errors import ModelFileError, O2MError, UnsupportedElementError
@@ -327,3 +328,26 @@ def load_document(path: str | Path) -> OsimDocument:
         _rename_old_types(model)
     _add_implicit_components(model)
     return OsimDocument(path=path, model=model, version=version, original=original)
+
+
+def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str,
+            default: tuple[float, ...] | np.ndarray | None = None) -> np.ndarray:
+    """Property element ``el`` as n floats; ``default`` (when given) for an absent or empty one, as
+    OpenSim keeps a property's default when its element holds no value ("Failed to read ... the
+    data have been ignored")."""
+    if el is None or not (el.text or "").strip():
+        if default is not None:
+            return np.array(default, dtype=float)
+        raise doc.error(el.getparent() if el is not None else doc.model, f"lacks <{what}>")
+    try:
+        vals = np.array([float(v) for v in el.text.split()])
+    except ValueError:
+        raise doc.error(el.getparent(), f"<{what}> holds '{el.text.strip()}', not numbers") from None
+    if n is not None and vals.size != n:
+        raise doc.error(el.getparent(), f"<{what}> has {vals.size} numbers, expected {n}")
+    if not np.all(np.isfinite(vals)):
+        raise doc.error(el.getparent(), f"<{what}> holds a non-finite number")
+    if np.any(np.abs(vals) > MAX_MAGNITUDE):
+        raise doc.error(el.getparent(), f"<{what}> holds {vals[np.argmax(np.abs(vals))]:g}, beyond "
+                                        f"{MAX_MAGNITUDE:g}, MuJoCo's largest value")
+    return vals

@@ -10,10 +10,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from lxml import etree
 
+from o2m.osim.document import _floats
 from o2m.osim.function_reader import parse_function
 from o2m.osim.functions import Function
 from o2m.osim.kinds import MUSCLE_TYPES, PATH_TYPES
-from o2m.osim.skeleton import FRAME_TYPES, SkeletonReader, _floats
+from o2m.osim.skeleton import FRAME_TYPES, SkeletonReader
 from o2m.transforms import Transform, body_fixed_xyz
 
 #: Path actuators and forces whose GeometryPath o2m turns into a MuJoCo spatial tendon.

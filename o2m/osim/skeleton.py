@@ -15,12 +15,13 @@ import numpy as np
 from lxml import etree
 
 from o2m.errors import UnsupportedElementError
-from o2m.osim.document import MAX_MAGNITUDE, OsimDocument
+from o2m.osim.document import OsimDocument, _floats
 from o2m.osim.function_reader import parse_function
 from o2m.osim.functions import Constant, Function
 from o2m.osim.joints import EllipsoidSurface, Joint, TransformAxis, loop_welds, orient_joints
 from o2m.osim.kinds import BODY_CONSTRAINTS, MODEL_SETS, PATH_TYPES, SKIP_REASONS, refuse_unknown, set_of_type
 from o2m.osim.names import CoordinateNames
+from o2m.osim.stations import station_defined_frame
 from o2m.transforms import Transform, axis_angle_matrix, body_fixed_xyz
 
 #: Joint types o2m converts, with the canonical axes of their coordinates in order:
@@ -45,29 +46,6 @@ SUPPORTED_JOINTS = frozenset(JOINT_AXES) | {"CustomJoint"} | frozenset(SURFACE_J
 FRAME_TYPES = ("Body", "Ground", "PhysicalOffsetFrame", "StationDefinedFrame")
 #: The six axes of a CustomJoint's SpatialTransform.
 TRANSFORM_AXES = frozenset({"rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"})
-
-
-def _floats(el: etree._Element | None, n: int | None, doc: OsimDocument, what: str,
-            default: tuple[float, ...] | np.ndarray | None = None) -> np.ndarray:
-    """Property element ``el`` as n floats; ``default`` (when given) for an absent or empty one, as
-    OpenSim keeps a property's default when its element holds no value ("Failed to read ... the
-    data have been ignored")."""
-    if el is None or not (el.text or "").strip():
-        if default is not None:
-            return np.array(default, dtype=float)
-        raise doc.error(el.getparent() if el is not None else doc.model, f"lacks <{what}>")
-    try:
-        vals = np.array([float(v) for v in el.text.split()])
-    except ValueError:
-        raise doc.error(el.getparent(), f"<{what}> holds '{el.text.strip()}', not numbers") from None
-    if n is not None and vals.size != n:
-        raise doc.error(el.getparent(), f"<{what}> has {vals.size} numbers, expected {n}")
-    if not np.all(np.isfinite(vals)):
-        raise doc.error(el.getparent(), f"<{what}> holds a non-finite number")
-    if np.any(np.abs(vals) > MAX_MAGNITUDE):
-        raise doc.error(el.getparent(), f"<{what}> holds {vals[np.argmax(np.abs(vals))]:g}, beyond "
-                                        f"{MAX_MAGNITUDE:g}, MuJoCo's largest value")
-    return vals
 
 
 def _bool(el: etree._Element | None, default: bool = False) -> bool:
@@ -219,7 +197,7 @@ class SkeletonReader:
         self._frames: dict[int, tuple[str, Transform, str]] = {}
         #: Components read as part of a frame (StationDefinedFrames and their Stations, by ``id``):
         #: converted there, so not listed as skipped generic components.
-        self._consumed: set[int] = set()
+        self.used_components: set[int] = set()
         self.names = CoordinateNames([])
 
     def coordinate_names(self, joints: list[etree._Element]) -> CoordinateNames:
@@ -259,55 +237,13 @@ class SkeletonReader:
             orient = _floats(o, 3, self.doc, "orientation", np.zeros(3))
             out = (body, x_parent @ Transform(body_fixed_xyz(orient), trans), el.get("name"))
         elif el.tag == "StationDefinedFrame":
-            out = self.station_defined_frame(el, _depth)
-            self._consumed.add(key)
+            out = station_defined_frame(self, el, _depth)
+            self.used_components.add(key)
         else:
             raise self.doc.error(el, "is used as a frame but is not a Body, Ground, PhysicalOffsetFrame or "
                                      "StationDefinedFrame")
         self._frames[key] = out
         return out
-
-    def station(self, el: etree._Element, socket: str, _depth: int) -> tuple[str, np.ndarray]:
-        """(body, position (3,) m in it) of the Station or Marker that socket ``socket`` of ``el`` names."""
-        sock = el.find(socket)
-        if sock is None:
-            raise self.doc.error(el, f"has no <{socket}>")
-        st = self.doc.resolve(sock)
-        if st.tag not in ("Station", "Marker"):
-            raise self.doc.error(el, f"<{socket}> names a <{st.tag}>, not a Station or Marker")
-        self._consumed.add(id(st))
-        parent = st.find("socket_parent_frame")
-        if parent is None:
-            raise self.doc.error(st, "has no <socket_parent_frame>")
-        body, x, _ = self.frame(self.doc.resolve(parent), _depth + 1)
-        return body, x.apply(_floats(st.find("location"), 3, self.doc, "location", np.zeros(3)))
-
-    def station_defined_frame(self, el: etree._Element, _depth: int) -> tuple[str, Transform, str]:
-        """A StationDefinedFrame as OpenSim 4.6 builds it: ``ab_axis`` (default +x) along b - a,
-        ``ab_x_ac_axis`` (default +y) along (b - a) x (c - a), the third axis completing a
-        right-handed frame, its origin at ``origin_point``; all four stations on one body."""
-        ends = [self.station(el, f"socket_{s}", _depth) for s in ("point_a", "point_b", "point_c", "origin_point")]
-        bodies = {b for b, _ in ends}
-        if len(bodies) != 1:
-            raise self.doc.error(el, f"has stations on several bodies ({', '.join(sorted(bodies))})")
-        a, b, c, origin = (p for _, p in ends)
-        ab, ab_x_ac = b - a, np.cross(b - a, c - a)
-        if np.linalg.norm(ab) < 1e-12 or np.linalg.norm(ab_x_ac) < 1e-12:
-            raise self.doc.error(el, "has stations a, b and c on one line: they define no frame")
-        rot = np.zeros((3, 3))
-        axes = []
-        for prop, default, vec in (("ab_axis", "+x", ab), ("ab_x_ac_axis", "+y", ab_x_ac)):
-            text = (el.findtext(prop) or "").strip() or default
-            if text not in ("+x", "-x", "+y", "-y", "+z", "-z", "x", "y", "z"):
-                raise self.doc.error(el, f"<{prop}> is '{text}', not one of +x, -x, +y, -y, +z, -z")
-            k = "xyz".index(text[-1])
-            rot[:, k] = (-1.0 if text[0] == "-" else 1.0) * vec / np.linalg.norm(vec)
-            axes.append(k)
-        if axes[0] == axes[1]:
-            raise self.doc.error(el, "has <ab_axis> and <ab_x_ac_axis> along one axis")
-        k = 3 - sum(axes)
-        rot[:, k] = np.cross(rot[:, (k + 1) % 3], rot[:, (k + 2) % 3])
-        return ends[0][0], Transform(rot, origin), el.get("name")
 
     def socket_frame(self, owner: etree._Element, socket: str) -> tuple[str, Transform, str]:
         sock = owner.find(socket)
@@ -589,7 +525,7 @@ class SkeletonReader:
                 self.check_known(el)
                 if set_tag == "ForceSet" and el.tag in PATH_TYPES:
                     continue  # paths are read by o2m.osim.paths (other path forces are skipped, listed)
-                if id(el) in self._consumed:
+                if id(el) in self.used_components:
                     continue  # a frame's part, converted with it
                 reason = SKIP_REASONS[set_tag]
                 if set_tag == "ForceSet" and el.find("GeometryPath") is not None:
