@@ -188,3 +188,15 @@ def unenforced_clamps(skel: Skeleton, hard_limits: bool) -> list[str]:
     return [f"{len(names)} clamped coordinates ({', '.join(names)}) have unlimited MuJoCo joints: OpenSim "
             f"enforces a clamped range only when it sets or assembles values, not in forward dynamics "
             f"(ConvertOptions.clamped_limits / --clamped-limits gives them MuJoCo's hard limits)"]
+
+
+#: Joint types whose rotational coordinates Simbody moves through the angular velocity's components
+#: in the joint's parent frame (its Ball, Free and Ellipsoid mobilizers) rather than through the
+#: angles' rates: a coordinate's speed is such a component, and a generalized force on it a torque
+#: about the parent frame's axis, where MuJoCo's hinge standing for it turns with the hinges before it.
+ANGULAR_VELOCITY_JOINTS = frozenset({"BallJoint", "FreeJoint", "EllipsoidJoint"})
+
+
+def is_mobility_rotation(joint: Joint, coord: str) -> bool:
+    """Whether ``coord`` is a rotation of ``joint``, a joint of :data:`ANGULAR_VELOCITY_JOINTS`."""
+    return joint.type in ANGULAR_VELOCITY_JOINTS and coord in [ax.coordinate for ax in joint.rotations]

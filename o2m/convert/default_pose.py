@@ -18,6 +18,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from o2m.convert.coordinates import is_mobility_rotation
 from o2m.convert.records import BuildResult
 from o2m.mj.posing import equality_residual, joint_equality_plan, pose_mujoco
 from o2m.osim.assembly import assembled_defaults
@@ -88,7 +89,7 @@ def default_velocity(model: mujoco.MjModel, builder, qpos: np.ndarray, result: B
     speeds = {n: c.default_speed for n, c in builder.skel.coordinates.items()
               if c.default_speed and not c.locked and mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) >= 0}
     listed = ", ".join(f"{n} {v:+.4g}" for n, v in list(speeds.items())[:NAMED])
-    unset = [n for n in speeds if (cj := builder.coord_joint.get(n)) is not None and _mobility(cj.joint, n)
+    unset = [n for n in speeds if (cj := builder.coord_joint.get(n)) is not None and is_mobility_rotation(cj.joint, n)
              and (cj.joint.type == "EllipsoidJoint" or cj.joint.reversed)]
     for n in unset:  # an ellipsoid's rotations are no hinges of their own, a reversed joint's mobility is the child's
         del speeds[n]
@@ -121,7 +122,7 @@ def _hinge_rates(model: mujoco.MjModel, data: mujoco.MjData, builder, speeds: di
     out: dict[str, float] = {}
     for joint in {id(cj.joint): cj.joint for n in speeds if (cj := builder.coord_joint.get(n)) is not None}.values():
         names = [ax.coordinate for ax in joint.rotations]
-        if not any(_mobility(joint, n) and n in speeds for n in names):
+        if not any(is_mobility_rotation(joint, n) and n in speeds for n in names):
             continue
         parent = np.eye(3) if joint.parent == "ground" else data.xmat[model.body(joint.parent).id].reshape(3, 3)
         frame = (OSIM_TO_MJ if joint.parent == "ground" else np.eye(3)) @ joint.parent_frame.rot
@@ -130,9 +131,3 @@ def _hinge_rates(model: mujoco.MjModel, data: mujoco.MjData, builder, speeds: di
         out.update(zip(names, np.linalg.solve(axes, omega), strict=True))
     return out
 
-
-def _mobility(joint, coord: str) -> bool:
-    """Whether ``coord`` is a rotation of a Ball, Free or Ellipsoid ``joint``, whose speed is an
-    angular velocity component (Simbody's mobility), not the angle's rate."""
-    rotations = [ax.coordinate for ax in joint.rotations]
-    return joint.type in ("BallJoint", "FreeJoint", "EllipsoidJoint") and coord in rotations

@@ -19,6 +19,7 @@ from lxml import etree
 
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.contact_fit import HuntCrossley, LinearContact
+from o2m.convert.coordinates import is_mobility_rotation
 from o2m.osim.functions import Function
 from o2m.osim.skeleton import SkeletonReader, Skipped
 
@@ -320,21 +321,13 @@ def _coordinate(ctx: _Context, el: etree._Element) -> str:
     return ctx.builder.skel.names.resolve(_text(el, "coordinate"))
 
 
-#: Joint types whose rotational coordinates Simbody moves through the angular velocity's components
-#: in the joint's parent frame (its Ball, Free and Ellipsoid mobilizers) rather than through the
-#: angles' rates: a generalized force on such a coordinate is a torque about the parent frame's
-#: axis, where a MuJoCo joint force on the hinge standing for it turns with the hinges before it.
-ANGULAR_VELOCITY_JOINTS = frozenset({"BallJoint", "FreeJoint", "EllipsoidJoint"})
-
-
 def angular_velocity_coordinate(ctx: _Context, coord: str) -> tuple[object, int] | None:
-    """(joint, i) when ``coord`` is rotational coordinate i of a joint of
-    :data:`ANGULAR_VELOCITY_JOINTS`, else None."""
+    """(joint, i) when ``coord`` is rotational coordinate i of a Ball, Free or Ellipsoid joint
+    (:func:`~o2m.convert.coordinates.is_mobility_rotation`), else None."""
     found = ctx.builder.coord_joint.get(coord)
-    if found is None or found.joint.type not in ANGULAR_VELOCITY_JOINTS:
+    if found is None or not is_mobility_rotation(found.joint, coord):
         return None
-    names = [ax.coordinate for ax in found.joint.rotations]
-    return (found.joint, names.index(coord)) if coord in names else None
+    return found.joint, [ax.coordinate for ax in found.joint.rotations].index(coord)
 
 
 def _flag(el: etree._Element, prop: str, default: bool) -> bool:
