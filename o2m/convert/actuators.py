@@ -45,6 +45,7 @@ from o2m.convert.force_context import (
     _text,
     _vector,
     angular_velocity_coordinate,
+    note_force_on_hinge,
 )
 from o2m.convert.records import Approximation
 from o2m.osim.skeleton import Skipped
@@ -117,11 +118,7 @@ def convert_coordinate_actuator(ctx: _Context, el: etree._Element) -> None:
     if mobility is not None and not mobility[0].reversed:
         _mobility_torque(ctx, el, *mobility, force)
         return
-    if mobility is not None:
-        ctx.builder.result.notes.append(
-            f"{el.tag} '{el.get('name')}': a motor on hinge '{cname}'; OpenSim's force on this "
-            f"{mobility[0].type} coordinate is a torque about its parent frame's axis, which the hinge "
-            "follows only while the hinges before it are at 0")
+    note_force_on_hinge(ctx, el, cname, "a motor")  # a reversed joint's: its mobility is the child's
     _add_actuator(ctx, el, np.array([force, 0, 0, 0, 0, 0]), trntype=mujoco.mjtTrn.mjTRN_JOINT, target=cname)
 
 

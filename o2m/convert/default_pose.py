@@ -117,8 +117,8 @@ def default_velocity(model: mujoco.MjModel, builder, qpos: np.ndarray, result: B
 
 
 def _hinge_rates(model: mujoco.MjModel, data: mujoco.MjData, builder, speeds: dict[str, float]) -> dict[str, float]:
-    """The hinge rates (rad/s) that give each Ball or Free joint's default angular velocity, whose
-    components about its parent frame's axes are its rotations' ``speeds`` (updated in place)."""
+    """The hinge rates (rad/s), by joint name, that give each Ball or Free joint's default angular
+    velocity, whose components about its parent frame's axes are its rotations' ``speeds``."""
     out: dict[str, float] = {}
     for joint in {id(cj.joint): cj.joint for n in speeds if (cj := builder.coord_joint.get(n)) is not None}.values():
         names = [ax.coordinate for ax in joint.rotations]

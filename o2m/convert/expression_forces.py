@@ -32,7 +32,7 @@ from o2m.convert.force_context import (
     _number,
     _text,
     _vector,
-    angular_velocity_coordinate,
+    note_force_on_hinge,
 )
 from o2m.convert.limit_forces import set_joint_passive
 from o2m.osim.skeleton import Skipped
@@ -107,18 +107,8 @@ def convert_spring_generalized_force(ctx: _Context, el: etree._Element) -> None:
             raise ctx.builder.doc.error(el, f"has <{prop}> {v:g}, not a finite number")
     ctx.out.joint_springs.append(JointSpring(el.get("name"), coord, k, rest if k else 0.0, c))
     set_joint_passive(ctx, ctx.spec.joint(coord), coord)
-    _note_mobility(ctx, el, coord)
+    note_force_on_hinge(ctx, el, coord)
 
-
-def _note_mobility(ctx: _Context, el: etree._Element, coord: str) -> None:
-    """Say so where ``el``'s force on ``coord`` becomes a force on a hinge that does not keep
-    OpenSim's direction (:func:`~o2m.convert.force_context.angular_velocity_coordinate`)."""
-    mobility = angular_velocity_coordinate(ctx, coord)
-    if mobility is not None:
-        ctx.builder.result.notes.append(
-            f"{el.tag} '{el.get('name')}': a force on hinge '{coord}'; OpenSim's force on this "
-            f"{mobility[0].type} coordinate is a torque about its parent frame's axis, which the hinge "
-            "follows only while the hinges before it are at 0")
 
 
 def convert_expression_force(ctx: _Context, el: etree._Element) -> None:
@@ -155,7 +145,7 @@ def convert_expression_force(ctx: _Context, el: etree._Element) -> None:
     ref = float(c) / k if k != 0.0 else 0.0
     ctx.out.joint_springs.append(JointSpring(name, coord, k, ref, -float(damp)))
     set_joint_passive(ctx, ctx.spec.joint(coord), coord)
-    _note_mobility(ctx, el, coord)
+    note_force_on_hinge(ctx, el, coord)
 
 
 #: The deflections an ExpressionBasedBushingForce's expressions read, in BushingForce's order, with

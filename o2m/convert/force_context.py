@@ -321,6 +321,18 @@ def _coordinate(ctx: _Context, el: etree._Element) -> str:
     return ctx.builder.skel.names.resolve(_text(el, "coordinate"))
 
 
+def note_force_on_hinge(ctx: _Context, el: etree._Element, coord: str, what: str = "a force") -> None:
+    """Say in the report that ``el``'s force on ``coord`` stays on MuJoCo's hinge ``coord``
+    (``what`` it is there) where OpenSim's is a torque about the parent frame's axis (a Ball,
+    Free or Ellipsoid rotation: :func:`angular_velocity_coordinate`)."""
+    mobility = angular_velocity_coordinate(ctx, coord)
+    if mobility is not None:
+        ctx.builder.result.notes.append(
+            f"{el.tag} '{el.get('name')}': {what} on hinge '{coord}'; OpenSim's force on this "
+            f"{mobility[0].type} coordinate is a torque about its parent frame's axis, which the hinge "
+            "follows only while the hinges before it are at 0")
+
+
 def angular_velocity_coordinate(ctx: _Context, coord: str) -> tuple[object, int] | None:
     """(joint, i) when ``coord`` is rotational coordinate i of a Ball, Free or Ellipsoid joint
     (:func:`~o2m.convert.coordinates.is_mobility_rotation`), else None."""
