@@ -138,10 +138,12 @@ class Carriers:
         #: Every carrier body added (see :meth:`weigh_static`).
         self.bodies: list = []
 
-    def body(self, parent: str, name: str, pos: np.ndarray):
-        """A massless child body of ``parent`` at ``pos`` (MuJoCo frame of the parent), named
-        ``name`` (made unique), to carry a moving point or a conditional point's side site."""
-        body = self.b.bodies[parent].add_body(name=self.ctx.unique(name), pos=pos)
+    def body(self, parent: str | mujoco.MjsBody, name: str, pos: np.ndarray):
+        """A massless child body of ``parent`` (an OpenSim body's name, or a carrier) at ``pos``
+        (MuJoCo frame of the parent), named ``name`` (made unique), to carry a moving point, a
+        conditional point's side site or a shared sphere."""
+        host = self.b.bodies[parent] if isinstance(parent, str) else parent
+        body = host.add_body(name=self.ctx.unique(name), pos=pos)
         self.b.exact[("body", body.name)] = {"pos": pos, "quat": np.array([1.0, 0, 0, 0])}
         body.explicitinertial = True
         body.mass = CARRIER_MASS

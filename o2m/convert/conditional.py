@@ -10,12 +10,17 @@ OpenSim's does, by OpenSim's own step, just beyond the range's ends (:data:`SWIT
 
 MuJoCo needs a site between two wrap geoms, so in a run of consecutive conditional points some
 are kept always on (sites) or left out: :func:`conditional_roles` takes the choice whose path
-is nearest OpenSim's over the sampled poses; the report names each point so treated.
+is nearest OpenSim's over the sampled poses; the report names each point so treated. Two
+consecutive points of one body that one coordinate switches on in disjoint ranges (the wrist
+flexors' pair on the radius, one on in flexion and one in extension) may instead share one
+sphere (:func:`shared_geom`): a carrier moves it from one point to the other while both are
+off, and its side site is out of it exactly there, so the run needs one geom fewer.
 """
 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -38,17 +43,37 @@ MIN_RANGE_WIDTH = 1e-9
 #: :func:`o2m.mj.tendons.mujoco_moment_arms`, so such a pose has it on within that step too.
 SWITCH_MARGIN = 1e-5
 #: Runs of consecutive conditional points up to this long try every role per point (3**n
-#: choices); a longer run keeps one sphere (the best) and leaves out the others.
+#: choices, more with shared spheres); a longer run keeps one sphere (the best) and leaves out the
+#: others.
 MAX_RUN_SEARCH = 6
+#: A run's roles are chosen by how far each puts the straight path from OpenSim's against the
+#: issue's per-muscle targets: the worst length error over the sampled poses over LENGTH_TARGET
+#: (a fraction of the path's length), or the worst RMS moment-arm error about a coordinate over
+#: MOMENT_ARM_TARGET (m), whichever is larger (by length alone, the wrist flexors kept roles whose
+#: moment arms were millimetres off where another choice was within the targets).
+LENGTH_TARGET = 0.01
+MOMENT_ARM_TARGET = 0.002
+#: Central-difference step (rad or m) of those moment arms, and the pose samples (the first ones)
+#: they are taken at: their RMS over a quarter of the samples, at a quarter of the cost.
+MOMENT_ARM_STEP = 1e-4
+MOMENT_ARM_SAMPLES = 50
+#: Roles that put a wrap geom on the path: a point's own sphere, or one shared with the next point.
+GEOM_ROLES = ("conditional", "shared")
+#: The shared sphere's carrier follows a quartic of the coordinate fitted to each point's place over
+#: its range; its slope, weighted by this (rad or m), is fitted to 0 there too, since the slope is a
+#: moment-arm error wherever the tendon bends at the sphere.
+SHARED_SLOPE_WEIGHT = 0.5
 
 
 def conditional_roles(ctx: PathContext, path: Path) -> list[str]:
     """For each point of ``path``: ``"site"`` (always on the path), ``"conditional"`` (a
     ConditionalPathPoint made a wrap sphere) or ``"dropped"`` (a conditional point left out:
     its coordinate is locked outside its range, or its range has no width
-    (:data:`MIN_RANGE_WIDTH`)). In a run of consecutive conditional points, MuJoCo needs a site
-    between two wrap geoms: :func:`_run_roles` chooses which of them are spheres, which are
-    kept always on (sites) and which are left out. First and last points stay sites."""
+    (:data:`MIN_RANGE_WIDTH`)), or ``"shared"`` / ``"joined"`` (a point and the next one of
+    its run sharing one sphere, :func:`shared_geom`). In a run of consecutive conditional
+    points, MuJoCo needs a site between two wrap geoms: :func:`_run_roles` chooses which of them
+    are spheres, which are kept always on (sites) and which are left out. First and last points
+    stay sites."""
     pts = path.points
     roles = []
     for i, p in enumerate(pts):
@@ -87,45 +112,110 @@ def _conditional_runs(roles: list[str]) -> list[list[int]]:
 
 def _run_roles(ctx: PathContext, path: Path, roles: list[str], run: list[int]) -> None:
     """Give the points ``run`` (consecutive conditional points of ``path``) the roles, among
-    sphere (``"conditional"``), always on (``"site"``) and left out (``"dropped"``), with a site
-    between any two spheres, whose path (points joined straight) is nearest OpenSim's: smallest
-    largest relative error over the sampled poses, then smallest RMS. Keeping one sphere and
-    leaving out the others is one of the choices, and the only kind tried for a run longer than
+    sphere (``"conditional"``), always on (``"site"``), left out (``"dropped"``) and one
+    sphere for two (``"shared"`` then ``"joined"``, :func:`can_share`), with a site between
+    any two spheres, whose path (points joined straight) is nearest OpenSim's over the sampled
+    poses: in length and moment arms against the targets (:data:`LENGTH_TARGET`,
+    :data:`MOMENT_ARM_TARGET`), then in RMS length. Keeping one sphere and leaving out the
+    others is one of the choices, and the only kind tried for a run longer than
     :data:`MAX_RUN_SEARCH`."""
     pts = path.points
     before = max(i for i in range(run[0]) if roles[i] == "site")
     after = min(i for i in range(run[-1] + 1, len(pts)) if roles[i] == "site")
     span = [before] + run + [after]
     where, active = _span_samples(ctx, path, span)
+    moved = _span_moved(ctx, path, span)
     truth = _polyline(where, active)
+    truth_arms = {c: _moment_arms(plus, minus, active[:MOMENT_ARM_SAMPLES]) for c, (plus, minus) in moved.items()}
     full = np.array([ctx.straight_length(path, n) for n in range(len(where))])
+    shareable = {j for j in range(len(run) - 1) if can_share(ctx, pts[run[j]], pts[run[j + 1]])}
     best = None
-    if len(run) <= MAX_RUN_SEARCH:
-        choices = itertools.product(("conditional", "site", "dropped"), repeat=len(run))
-    else:
-        choices = [tuple("conditional" if i == j else "dropped" for i in range(len(run))) for j in range(len(run))]
-    for choice in choices:
-        kept = [c for c in choice if c != "dropped"]
-        if any(a == b == "conditional" for a, b in zip(kept[:-1], kept[1:], strict=True)):
-            continue
-        on = active.copy()
-        for j, c in enumerate(choice, start=1):
-            on[:, j] = {"conditional": active[:, j], "site": True, "dropped": False}[c]
-        rel = np.abs(_polyline(where, on) - truth) / np.maximum(full, 1e-12)
-        key = (float(rel.max()), float(np.sqrt(np.mean(rel**2))))
+    for choice in _run_choices(len(run), shareable):
+        on, at = _choice_path(ctx, path, span, choice, where, active)
+        rel = np.abs(_polyline(at, on) - truth) / np.maximum(full, 1e-12)
+        few = active[:MOMENT_ARM_SAMPLES]
+        arms = [np.sqrt(np.mean((_moment_arms(_choice_path(ctx, path, span, choice, plus, few, c, 1)[1],
+                                               _choice_path(ctx, path, span, choice, minus, few, c, -1)[1],
+                                               on[:MOMENT_ARM_SAMPLES]) - truth_arms[c]) ** 2))
+                for c, (plus, minus) in moved.items()]
+        arm = float(max(arms, default=0.0))
+        key = (max(float(rel.max()) / LENGTH_TARGET, arm / MOMENT_ARM_TARGET), float(np.sqrt(np.mean(rel**2))))
         if best is None or key < best[0]:
-            best = (key, choice)
-    (worst, rms), choice = best
+            best = (key, choice, float(rel.max()), arm)
+    (_, rms), choice, worst, arm = best
     for k, c in zip(run, choice, strict=True):
         roles[k] = c
-    spheres = [pts[k].name for k, c in zip(run, choice, strict=True) if c == "conditional"]
+    spheres = [pts[k].name for k, c in zip(run, choice, strict=True) if c in GEOM_ROLES]
     for k, c in zip(run, choice, strict=True):
-        if c != "conditional":
+        if c in ("site", "dropped"):
             what = "left out" if c == "dropped" else "kept always on the path"
             ctx.b.result.notes.append(
                 f"{path.owner}: ConditionalPathPoint '{pts[k].name}' {what} (consecutive conditional points: "
                 f"MuJoCo needs a site between two wrap geoms; spheres {spheres or 'none'}, the straight path so "
-                f"chosen is within {100 * worst:.2g} % of OpenSim's over the sampled poses, {100 * rms:.2g} % RMS)")
+                f"chosen is within {100 * worst:.2g} % of OpenSim's over the sampled poses, {100 * rms:.2g} % RMS, "
+                f"its moment arms within {1e3 * arm:.2g} mm RMS)")
+
+
+def _choice_path(ctx: PathContext, path: Path, span: list[int], choice: tuple[str, ...], where: np.ndarray,
+                 active: np.ndarray, coordinate: str | None = None, sign: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Which points of ``span`` (a run and the sites around it) are on the path with the roles
+    ``choice``, and where (``where``: their places (P, len(span), 3), m), at the sampled poses
+    (``coordinate`` moved by ``sign`` :data:`MOMENT_ARM_STEP`, for a shared sphere's carrier)."""
+    on, at = active.copy(), where
+    for j, c in enumerate(choice, start=1):
+        on[:, j] = {"conditional": active[:, j], "site": True, "dropped": False, "joined": False,
+                    "shared": active[:, j] | active[:, min(j + 1, len(span) - 1)]}[c]
+        if c == "shared":
+            a, b = path.points[span[j]], path.points[span[j + 1]]
+            shift = sign * MOMENT_ARM_STEP if coordinate == a.condition[0] else 0.0
+            at = at.copy()
+            at[:, j] = _shared_places(ctx, a, b, where[:, j], where[:, j + 1], shift)
+    return on, at
+
+
+def _moment_arms(plus: np.ndarray, minus: np.ndarray, on: np.ndarray) -> np.ndarray:
+    """Moment arms (m, per sample) of the straight path through the points ``on`` from their
+    places with a coordinate moved up (``plus``) and down (``minus``) by :data:`MOMENT_ARM_STEP`."""
+    return -(_polyline(plus, on) - _polyline(minus, on)) / (2 * MOMENT_ARM_STEP)
+
+
+def _span_moved(ctx: PathContext, path: Path, span: list[int]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """For each free coordinate that changes the distances between the points ``span`` of
+    ``path`` (at the reference pose): their ground places (n, len(span), 3) at the first
+    :data:`MOMENT_ARM_SAMPLES` pose samples with it moved up and down by :data:`MOMENT_ARM_STEP`."""
+    pts = [path.points[k] for k in span]
+    samples = ctx.pose_samples()
+
+    def places(coordinate: str, step: float, n: int) -> np.ndarray:
+        frames = ctx.moved_frames(coordinate, step, n)
+        return np.array([[frames[i][p.body].apply(ctx.location_at(p, values)) for p in pts]
+                         for i, (_, values) in enumerate(samples[:n])])
+
+    def shape(x: np.ndarray) -> np.ndarray:  # distances between the points at the first pose
+        return np.linalg.norm(x[0][:, None] - x[0][None], axis=-1)
+
+    return {c: (places(c, MOMENT_ARM_STEP, MOMENT_ARM_SAMPLES), places(c, -MOMENT_ARM_STEP, MOMENT_ARM_SAMPLES))
+            for c in samples[0][0]
+            if np.abs(shape(places(c, MOMENT_ARM_STEP, 1)) - shape(places(c, -MOMENT_ARM_STEP, 1))).max() > 1e-12}
+
+
+def _run_choices(n: int, shareable: set[int]):
+    """Role tuples for a run of ``n`` conditional points (see :func:`_run_roles`); a pair
+    ``(j, j + 1)`` with ``j`` in ``shareable`` may share a sphere."""
+    if n > MAX_RUN_SEARCH:
+        return [tuple("conditional" if i == j else "dropped" for i in range(n)) for j in range(n)]
+    kinds = ("conditional", "site", "dropped") + (("shared", "joined") if shareable else ())
+    out = []
+    for choice in itertools.product(kinds, repeat=n):
+        if any(c == "shared" and (j not in shareable or choice[j + 1] != "joined") for j, c in enumerate(choice)):
+            continue
+        if any(c == "joined" and (j == 0 or choice[j - 1] != "shared") for j, c in enumerate(choice)):
+            continue
+        kept = [c for c in choice if c not in ("dropped", "joined")]
+        if any(a in GEOM_ROLES and b in GEOM_ROLES for a, b in zip(kept[:-1], kept[1:], strict=True)):
+            continue
+        out.append(choice)
+    return out
 
 
 def _span_samples(ctx: PathContext, path: Path, span: list[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -172,7 +262,9 @@ def conditional_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, r
     the sampled poses where OpenSim has the point inactive (each weighted by the length the
     point would add). So the tendon switches where OpenSim does, by OpenSim's own step. A
     range end at the coordinate's limit is no switch (a default pose there would otherwise
-    sit on the step)."""
+    sit on the step). A point whose role is ``"shared"`` gets :func:`shared_geom`."""
+    if roles[k] == "shared":
+        return shared_geom(ctx, carriers, path, k, roles)
     point = path.points[k]
     cname, lo, hi = point.condition
     r = CONDITIONAL_RADIUS
@@ -189,8 +281,7 @@ def conditional_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, r
                                       contype=0, conaffinity=0, group=3, density=0, rgba=[0.9, 0.6, 0.2, 0.5])
     ctx.exact[("geom", gname)] = {"pos": pos, "size": np.array([r])}
     base = ctx.b.drivers[cname].base
-    kind = ctx.b.coord_joint[base][1].kind if base in ctx.b.coord_joint else "rotation"
-    clo, chi = ctx.b.fit_range(base, kind)
+    clo, chi = _coordinate_range(ctx, cname)
     # where the switch is: just beyond each end, as OpenSim's range is closed and a side site on
     # the surface is in or out by rounding (WristModel FDPM, range end 0 at the default flexion:
     # MuJoCo's finite-difference moment arms 0.4 m there about every coordinate)
@@ -265,10 +356,13 @@ def _bend(ctx: PathContext, path: Path, k: int, values: dict[str, float], keep: 
     return off / n, detour, ac / max(float(np.linalg.norm(ac)), 1e-18)
 
 
-def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centre: np.ndarray) -> np.ndarray:
+def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centre: np.ndarray,
+                   active: Callable[[dict[str, float]], bool] | None = None,
+                   centre_at: Callable[[dict[str, float]], np.ndarray] | None = None) -> np.ndarray:
     """Unit direction (body frame of point ``k``) from the point towards which the straight
     segment between its neighbouring sites passes in the sampled poses where OpenSim has the
-    point inactive (each pose weighted by the length the point would add there)."""
+    point inactive (each pose weighted by the length the point would add there). For a shared
+    sphere: ``active`` says when it is on, ``centre_at`` where it is (body frame, m)."""
     pts = path.points
     keep = [r == "site" for r in roles]
     before = next(i for i in range(k - 1, -1, -1) if keep[i])
@@ -276,8 +370,10 @@ def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centr
     point = pts[k]
     feet, weights = [], []
     for j, (_, values) in enumerate(ctx.pose_samples()):
-        if ctx.active(point, values):
+        if (active(values) if active is not None else ctx.active(point, values)):
             continue
+        if centre_at is not None:
+            centre = centre_at(values)
         frames = ctx.sample_frames(j)
         to_body = frames[point.body].inverse()
         a = to_body.apply(frames[pts[before].body].apply(ctx.location_at(pts[before], values)))
@@ -309,3 +405,139 @@ def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centr
     else:
         u = cand[best[np.argmax(cand[best] @ -n_body)]]
     return u / np.linalg.norm(u)
+
+
+def _coordinate_range(ctx: PathContext, cname: str) -> tuple[float, float]:
+    """The range (rad or m) coordinate ``cname``'s base is fitted over."""
+    base = ctx.b.drivers[cname].base
+    kind = ctx.b.coord_joint[base][1].kind if base in ctx.b.coord_joint else "rotation"
+    return ctx.b.fit_range(base, kind)
+
+
+def _in_range(ctx: PathContext, point: PathPoint) -> tuple[float, float] | None:
+    """The part of ``point``'s active range inside its coordinate's fitted range, if any."""
+    cname, lo, hi = point.condition
+    clo, chi = _coordinate_range(ctx, cname)
+    a, b = max(lo, clo), min(hi, chi)
+    return (a, b) if b - a > MIN_RANGE_WIDTH else None
+
+
+def can_share(ctx: PathContext, a: PathPoint, b: PathPoint) -> bool:
+    """Whether consecutive ConditionalPathPoints ``a`` and ``b`` may share one sphere: fixed
+    points of one body, switched by the same independent coordinate in ranges that do not
+    meet (so at most one is on), each within the coordinate's range."""
+    if a.condition is None or b.condition is None or a.body != b.body or a.moving or b.moving:
+        return False
+    cname = a.condition[0]
+    if b.condition[0] != cname or ctx.b.drivers[cname].base != cname or ctx.fixed(cname):
+        return False
+    lower, upper = sorted((a.condition, b.condition), key=lambda c: c[1])
+    return (upper[1] - lower[2] > 4 * SWITCH_MARGIN and _in_range(ctx, a) is not None
+            and _in_range(ctx, b) is not None)
+
+
+def _shared_fraction(ctx: PathContext, a: PathPoint, b: PathPoint) -> np.polynomial.Polynomial:
+    """Where a sphere shared by ``a`` and ``b`` is, as the fraction of the way from ``b`` to
+    ``a``: a quartic of their coordinate, least squares 1 over ``a``'s range and 0 over ``b``'s
+    (within the coordinate's range), its slope 0 there (weight :data:`SHARED_SLOPE_WEIGHT`).
+    Between the ranges both points are off and the sphere's place does not matter."""
+    xa, xb = (np.linspace(*_in_range(ctx, p), 200) for p in (a, b))
+    x = np.r_[xa, xb]
+    target = np.r_[np.ones_like(xa), np.zeros_like(xb)]
+    mid, half = 0.5 * (x.max() + x.min()), 0.5 * (x.max() - x.min())
+    t = (x - mid) / half  # scaled: a well-conditioned Vandermonde
+    value = np.vander(t, 5, increasing=True)
+    slope = np.c_[np.zeros(len(t)), value[:, :-1] * np.arange(1, 5)] / half
+    coef = np.linalg.lstsq(np.r_[value, SHARED_SLOPE_WEIGHT * slope], np.r_[target, np.zeros_like(t)],
+                           rcond=None)[0]
+    return np.polynomial.Polynomial(coef, domain=[x.min(), x.max()], window=[-1, 1])
+
+
+def _shared_places(ctx: PathContext, a: PathPoint, b: PathPoint, wa: np.ndarray, wb: np.ndarray,
+                   shift: float = 0.0) -> np.ndarray:
+    """Ground places (P, 3) of the sphere shared by ``a`` and ``b`` at the pose samples (their
+    coordinate moved by ``shift``), given the points' own ground places ``wa`` and ``wb`` there."""
+    frac = _shared_fraction(ctx, a, b)
+    q = np.array([values[a.condition[0]] for _, values in ctx.pose_samples()[:len(wa)]]) + shift
+    return wb + frac(q)[:, None] * (wa - wb)
+
+
+def shared_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, roles: list[str]) -> tuple[str, str]:
+    """One wrap sphere for ConditionalPathPoints ``k`` and ``k + 1`` of ``path`` (one body, one
+    coordinate, disjoint ranges: :func:`can_share`), and its side site.
+
+    The sphere rides a carrier that slides from the second point's place to the first's as a
+    quartic of the coordinate (:func:`_shared_fraction`; each place one radius beyond its point
+    as in :func:`conditional_geom`); its side site rides a carrier on that one, along ``u``,
+    inside the sphere while either point is on and out of it in the gap between their ranges
+    (its distance from the centre a quadratic: the radius at the gap's ends, :data:`SWITCH_MARGIN`
+    inside them, more between, less beyond, and never a radius on the far side within the
+    coordinate's range). The report gives how far the sphere is from the active point."""
+    a, b = path.points[k], path.points[k + 1]
+    cname = a.condition[0]
+    r = CONDITIONAL_RADIUS
+    keep = [q == "site" for q in roles]
+    places = []
+    for p, i in ((a, k), (b, k + 1)):
+        values = _reference_active_values(ctx, p)
+        n_ground, _, _ = _bend(ctx, path, i, values, keep)
+        n_body = ctx.b.ground_frames_at(values)[p.body].rot.T @ n_ground
+        places.append(np.asarray(p.location, dtype=float) + r * n_body)
+    ca, cb = places
+    span = float(np.linalg.norm(ca - cb))
+    e = (ca - cb) / span
+    frac = _shared_fraction(ctx, a, b)
+
+    def carry(x, span=span, frac=frac):  # distance (m) along e from b's place
+        return span * frac(np.asarray(x, dtype=float))
+
+    def vec(v: np.ndarray) -> np.ndarray:  # a direction of the point's body as MuJoCo places it
+        return ctx.in_world(a.body, Transform(pos=v)).pos if a.body == "ground" else v
+
+    gname = ctx.unique(f"{path.owner}-{a.name}_{b.name}_cond")
+    ref = float(carry(ctx.b.ref[cname]))
+    body = carriers.body(a.body, f"{gname}_carrier", ctx.in_world(a.body, Transform(pos=cb + ref * e)).pos)
+    _slide(ctx, body, f"{gname}_carry", vec(e), ref, path, f"{a.name}/carry", cname, carry, a)
+    body.add_geom(name=gname, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[r, 0, 0], pos=[0, 0, 0],
+                  contype=0, conaffinity=0, group=3, density=0, rgba=[0.9, 0.6, 0.2, 0.5])
+    ctx.exact[("geom", gname)] = {"pos": np.zeros(3), "size": np.array([r])}
+
+    lower, upper = sorted((a.condition, b.condition), key=lambda c: c[1])
+    glo, ghi = lower[2] + SWITCH_MARGIN, upper[1] - SWITCH_MARGIN
+    mid, half = 0.5 * (glo + ghi), 0.5 * (ghi - glo)
+    clo, chi = _coordinate_range(ctx, cname)
+    zmax = max(abs(clo - mid), abs(chi - mid), half) / half
+    bump = min(1.0, 1.5 / (zmax**2 - 1)) if zmax > 1 else 1.0
+
+    def side(x, r=r, mid=mid, half=half, bump=bump):  # out (> r) in the gap, in (|d| < r) beyond
+        return r * (1 + bump * (1 - ((np.asarray(x, dtype=float) - mid) / half) ** 2))
+
+    u = _off_direction(ctx, path, k, roles, ca, active=lambda v: ctx.active(a, v) or ctx.active(b, v),
+                       centre_at=lambda v: cb + float(carry(v[cname])) * e)
+    dref = float(side(ctx.b.ref[cname]))
+    sbody = carriers.body(body, f"{gname}_side_carrier", vec(dref * u))
+    _slide(ctx, sbody, f"{gname}_switch", vec(u), dref, path, f"{a.name}/switch", cname, side, a)
+    sname = ctx.unique(f"{gname}_side")
+    sbody.add_site(name=sname, pos=[0, 0, 0], size=[0.001, 0, 0], group=5)
+    grid = np.concatenate([np.linspace(*_in_range(ctx, p), 101) for p in (a, b)])
+    want = np.where(np.array([ctx.active(a, {cname: x}) for x in grid]), span, 0.0)
+    off = np.abs(carry(grid) - want)
+    ctx.b.result.notes.append(
+        f"{path.owner}: ConditionalPathPoints '{a.name}' and '{b.name}' (one body, on for '{cname}' in "
+        f"[{a.condition[1]:g}, {a.condition[2]:g}] and [{b.condition[1]:g}, {b.condition[2]:g}]) share a wrap "
+        f"sphere of radius {r:g} m that a quartic of '{cname}' carries between them, within {1e3 * off.max():.2g} mm "
+        f"of the point that is on (RMS {1e3 * np.sqrt(np.mean(off**2)):.2g} mm); its side site leaves it "
+        f"between the ranges")
+    return gname, sname
+
+
+def _slide(ctx: PathContext, body, name: str, axis: np.ndarray, ref: float, path: Path, what: str, cname: str,
+           fn, point: PathPoint) -> None:
+    """A carrier slide on ``body`` along ``axis`` (MuJoCo frame), ``fn`` (m) of coordinate
+    ``cname``, through a joint equality."""
+    jname = ctx.unique(name)
+    body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=ref, armature=CARRIER_ARMATURE)
+    ctx.b.exact[("joint", jname)] = {"axis": np.asarray(axis, dtype=float), "pos": np.zeros(3), "ref": ref}
+    rec = JointRecord(jname, "slide", path.owner, what, None, None, "coordinate")
+    ctx.b.couple(rec, ctx.b.drivers[cname].then(fn), ref, point.element)
+    ctx.b.result.joints.append(rec)

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from o2m.convert.conditional import GEOM_ROLES
 from o2m.convert.pathpoints import PathContext
 from o2m.convert.records import Approximation
 from o2m.osim.paths import Path, PathPoint
@@ -98,7 +99,7 @@ class PathForces:
             if a.body != b.body or not (self._moves(a) or self._moves(b)) or a.designed or b.designed:
                 continue  # (a designed point stands for OpenSim's wraps there, whose forces act)
             others = [pts[k].name for k in range(site_point[i] + 1, site_point[i + 1])
-                      if roles[k] == "conditional" and pts[k].body != a.body]
+                      if roles[k] in GEOM_ROLES and pts[k].body != a.body]
             item = planned.get(i)
             if item is not None and item[0] == "wrap" and item[1].body != a.body:
                 others.append(item[1].name)

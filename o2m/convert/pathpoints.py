@@ -33,6 +33,8 @@ class PathContext:
         #: Each point's locations (P, 3) at the pose samples, by ``id(point)`` (the point kept
         #: beside them, so that its id stays its own).
         self._sample_locations: dict[int, tuple[PathPoint, np.ndarray]] = {}
+        #: Frames at the first pose samples with a coordinate moved, by (coordinate, step, n).
+        self._moved_frames: dict[tuple[str, float, int], list[dict[str, Transform]]] = {}
         #: Each location function's value at the reference pose, by ``id(function)`` (likewise).
         self._reference_offsets: dict[int, tuple[object, float]] = {}
 
@@ -122,6 +124,16 @@ class PathContext:
         if k not in self._frames:
             self._frames[k] = self.b.ground_frames_at(self.pose_samples()[k][1])
         return self._frames[k]
+
+    def moved_frames(self, coordinate: str, step: float, n: int) -> list[dict[str, Transform]]:
+        """Each body's frame in OpenSim ground at each of the first ``n`` pose samples with
+        independent ``coordinate`` moved by ``step`` (rad or m; cached)."""
+        key = (coordinate, step, n)
+        if key not in self._moved_frames:
+            self._moved_frames[key] = [
+                self.b.ground_frames_at(self.b.coordinate_values({**base, coordinate: base[coordinate] + step}))
+                for base, _ in self.pose_samples()[:n]]
+        return self._moved_frames[key]
 
     def straight_length(self, path: Path, k: int, drop: set[int] | frozenset[int] = frozenset()) -> float:
         """Length (m) of ``path`` at pose sample ``k`` with its active points (but those in

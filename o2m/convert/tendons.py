@@ -20,7 +20,7 @@ import numpy as np
 
 from o2m.convert.builder import MjcfBuilder
 from o2m.convert.carriers import CARRIER_AXIS_TOLERANCE, Carriers
-from o2m.convert.conditional import conditional_geom, conditional_roles
+from o2m.convert.conditional import GEOM_ROLES, conditional_geom, conditional_roles
 from o2m.convert.force_context import _applies_force
 from o2m.convert.pathforces import PathForces
 from o2m.convert.pathpoints import PathContext
@@ -91,7 +91,7 @@ class TendonBuilder:
             site_of_point.append((site_of_point[-1] if site_of_point else -1) + (role == "site"))
         planned: dict[int, tuple] = {}
         for k, role in enumerate(roles):
-            if role == "conditional":
+            if role in GEOM_ROLES:
                 planned[site_of_point[k]] = ("conditional", k)
         for seg, wrap in self.wrap_geoms.place(path, sites_ground):
             sseg = site_of_point[seg]

@@ -116,3 +116,46 @@ def test_a_bend_that_turns_over_still_passes_through_the_point(tmp_path, monkeyp
         assert err[qs > 0.5].max() > 1e-3, err.max()
     else:
         assert err.max() < 4e-4, err.max()
+
+
+def _arm_polyline(q: float, points: list[tuple[float, float]]) -> float:
+    """Length (m) at angle ``q`` (rad) of P1 (ground, (-0.2, 0)) through ``points`` (arm frame,
+    x and y, m) to P4 (arm, (0.3, 0))."""
+    c, s = np.cos(q), np.sin(q)
+    xy = [np.array([-0.2, 0.0])] + [np.array([c * x - s * y, s * x + c * y]) for x, y in points + [(0.3, 0.0)]]
+    return float(sum(np.linalg.norm(b - a) for a, b in zip(xy[:-1], xy[1:], strict=True)))
+
+
+def test_two_points_of_one_body_on_in_disjoint_ranges_share_a_sphere(tmp_path):
+    """P2 bends the path for q in [0.9, 1.5], P3 (after it, on the same arm) for q in [-1, -0.4];
+    between, neither. With a sphere per point and a site between any two, one point must be
+    kept always on or left out: a detour of millimetres somewhere. One sphere that a carrier
+    moves from P3 to P2 while both are off (a quartic of q, its worst offset in the report),
+    its side site out of it only in the gap, is exact in the gap and within that offset of
+    OpenSim where a point is on."""
+    p2, p3 = (0.1, 0.02), (0.12, -0.015)
+    path = tmp_path / "shared.osim"
+    _pendulum(path, [("P2", (*p2, 0.0), (0.9, 1.5)), ("P3", (*p3, 0.0), (-1.0, -0.4))])
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    note = next((n for n in conv.report.notes if "share a wrap sphere" in n), None)
+    assert note is not None and "'P2' and 'P3'" in note, conv.report.notes
+    offset = float(note.split("within ")[1].split(" mm")[0]) * 1e-3
+    m = mujoco.MjModel.from_xml_path(str(conv.xml))
+    spheres = [m.geom(i).name for i in range(m.ngeom) if m.geom(i).name.endswith("_cond")]
+    assert spheres == ["m-P2_P3_cond"], spheres
+    qs = np.arange(-1.0, 1.5, np.deg2rad(1.0))
+    l_os, l_mj = pendulum_lengths(path, conv.xml, qs)
+    err = np.abs(l_mj - l_os)
+    gap = (qs > -0.4 + 1e-3) & (qs < 0.9 - 1e-3)
+    assert err[gap].max() < 1e-9, err[gap].max()
+    assert err.max() <= offset + 4 * 1e-4, (err.max(), offset)
+    # every role with a sphere per point (C), always on (S) or left out (D) errs more
+    on2, on3 = (qs >= 0.9), (qs <= -0.4)
+    worst = {}
+    for r2, r3 in [("C", "S"), ("S", "C"), ("C", "D"), ("D", "C"), ("S", "S"), ("S", "D"), ("D", "S"), ("D", "D")]:
+        keep2 = on2 if r2 == "C" else np.full(len(qs), r2 == "S")
+        keep3 = on3 if r3 == "C" else np.full(len(qs), r3 == "S")
+        lengths = [_arm_polyline(q, [p for p, k in ((p2, k2), (p3, k3)) if k])
+                   for q, k2, k3 in zip(qs, keep2, keep3, strict=True)]
+        worst[r2 + r3] = float(np.abs(np.array(lengths) - l_os).max())
+    assert min(worst.values()) > 2 * err.max(), (worst, err.max())
