@@ -438,6 +438,12 @@ class _Problem:
         return math.inf if got is None else max(g[0] for g in got)
 
 
+def _unit_flat(flat: FloatArray) -> FloatArray:
+    """Flat shapes with each row of unit norm: a shape's length is free (its inner joint is
+    scaled afterwards), and left free it carries round-off from one search into the next."""
+    return np.concatenate(_unit_rows(flat)) if flat.size else flat
+
+
 def _unit_rows(flat: FloatArray) -> list[FloatArray]:
     """Flat shapes (4L,) as L rows of unit norm."""
     c = flat.reshape(-1, 4)
@@ -472,7 +478,7 @@ def _search_stage(p: _Problem, shapes: list[FloatArray], k_all: int, uses: Seque
         flat0 = np.concatenate([*shapes[:k_all], s0 / max(float(np.linalg.norm(s0)), 1e-300)] if s0.size
                                else shapes[:k_all])
         search.sw = [np.ones_like(f) for f in p.search_f]
-        flat = levenberg_marquardt(search, flat0, _LM_ITERATIONS)
+        flat = _unit_flat(levenberg_marquardt(search, flat0, _LM_ITERATIONS))
         r = search.residual(flat)
         runs.append((float(r @ r), flat, flat0))
     # every result scored by its linear programs; the best few then reweighted towards
@@ -489,7 +495,7 @@ def _search_stage(p: _Problem, shapes: list[FloatArray], k_all: int, uses: Seque
             top = max(max(float(np.max(w)) for w in ws), 1e-300)
             ws = [w / top for w in ws]
             search.sw = [np.sqrt(w) for w in ws]
-            flat = levenberg_marquardt(search, flat, _LM_ITERATIONS // 4)
+            flat = _unit_flat(levenberg_marquardt(search, flat, _LM_ITERATIONS // 4))
             scored.append((p.score(_unit_rows(flat), axis_uses), len(scored) + j, flat))
     best_flat = min(scored, key=lambda z: (z[0], z[1]))[2]
     return _unit_rows(best_flat)

@@ -368,8 +368,7 @@ COUPLER_KNEE_Y = {
 
 
 @pytest.mark.parametrize("x0", [
-    pytest.param(0.0, id="reference 0 (Leg39)", marks=pytest.mark.xfail(
-        strict=False, reason="rounding decides this plan (docs/fidelity.md, 'The knee fits depend on round-off')")),
+    pytest.param(0.0, id="reference 0 (Leg39)"),
     pytest.param(-1.91986209, id="reference -110 deg (soccer kick)")])
 def test_five_coupled_axes_of_two_bodies_reach_the_skeleton_budget(x0):
     """Five coupler splines of one knee on two bodies (each a hinge and two slides) fill both bodies
