@@ -188,8 +188,12 @@ def _span_moved(ctx: PathContext, path: Path, span: list[int]) -> dict[str, tupl
 
     def places(coordinate: str, step: float, n: int) -> np.ndarray:
         frames = ctx.moved_frames(coordinate, step, n)
-        return np.array([[frames[i][p.body].apply(ctx.location_at(p, values)) for p in pts]
-                         for i, (_, values) in enumerate(samples[:n])])
+        out = np.zeros((n, len(pts), 3))
+        for i, (base, values) in enumerate(samples[:n]):
+            if any(p.moving for p in pts):  # a moving point's place follows the moved coordinate too
+                values = ctx.b.coordinate_values({**base, coordinate: base[coordinate] + step})
+            out[i] = [frames[i][p.body].apply(ctx.location_at(p, values)) for p in pts]
+        return out
 
     def shape(x: np.ndarray) -> np.ndarray:  # distances between the points at the first pose
         return np.linalg.norm(x[0][:, None] - x[0][None], axis=-1)
