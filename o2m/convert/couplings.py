@@ -32,6 +32,8 @@ from o2m.convert.shapesearch import (
     polynomial_slope_errors,
     power_shape,
     shifted_power_series,
+    unit_flat,
+    unit_rows,
     unit_shape,
     unit_shape_slope,
 )
@@ -438,18 +440,6 @@ class _Problem:
         return math.inf if got is None else max(g[0] for g in got)
 
 
-def _unit_flat(flat: FloatArray) -> FloatArray:
-    """Flat shapes with each row of unit norm: a shape's length is free (its inner joint is
-    scaled afterwards), and left free it carries round-off from one search into the next."""
-    return np.concatenate(_unit_rows(flat)) if flat.size else flat
-
-
-def _unit_rows(flat: FloatArray) -> list[FloatArray]:
-    """Flat shapes (4L,) as L rows of unit norm."""
-    c = flat.reshape(-1, 4)
-    return list(c / np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None])
-
-
 def _search_shapes(p: _Problem, start: FloatArray, uses: Sequence[Sequence[int]], L: int,
                    seed: int) -> list[FloatArray]:
     """The L inner shapes (Chebyshev T_1..T_4, unit norm): the start shapes polished, then one
@@ -478,14 +468,14 @@ def _search_stage(p: _Problem, shapes: list[FloatArray], k_all: int, uses: Seque
         flat0 = np.concatenate([*shapes[:k_all], s0 / max(float(np.linalg.norm(s0)), 1e-300)] if s0.size
                                else shapes[:k_all])
         search.sw = [np.ones_like(f) for f in p.search_f]
-        flat = _unit_flat(levenberg_marquardt(search, flat0, _LM_ITERATIONS))
+        flat = unit_flat(levenberg_marquardt(search, flat0, _LM_ITERATIONS))
         r = search.residual(flat)
         runs.append((float(r @ r), flat, flat0))
     # every result scored by its linear programs; the best few then reweighted towards
     # minimax (Lawson); the earlier shapes kept as they were with the best new one are a
     # candidate too (its error is no larger than the smaller structure's)
     runs.sort(key=lambda r: r[0])
-    scored = [(p.score(_unit_rows(f), axis_uses), i, f) for i, f in
+    scored = [(p.score(unit_rows(f), axis_uses), i, f) for i, f in
               enumerate([runs[0][2]] + [r[1] for r in runs])]
     scored.sort(key=lambda z: (z[0], z[1]))
     for _, _, flat in list(scored[:_POLISHED]):
@@ -495,10 +485,10 @@ def _search_stage(p: _Problem, shapes: list[FloatArray], k_all: int, uses: Seque
             top = max(max(float(np.max(w)) for w in ws), 1e-300)
             ws = [w / top for w in ws]
             search.sw = [np.sqrt(w) for w in ws]
-            flat = _unit_flat(levenberg_marquardt(search, flat, _LM_ITERATIONS // 4))
-            scored.append((p.score(_unit_rows(flat), axis_uses), len(scored) + j, flat))
+            flat = unit_flat(levenberg_marquardt(search, flat, _LM_ITERATIONS // 4))
+            scored.append((p.score(unit_rows(flat), axis_uses), len(scored) + j, flat))
     best_flat = min(scored, key=lambda z: (z[0], z[1]))[2]
-    return _unit_rows(best_flat)
+    return unit_rows(best_flat)
 
 
 def _assembled(p: _Problem, shapes: list[FloatArray], uses: Sequence[Sequence[int]],

@@ -22,7 +22,7 @@ from o2m.osim.functions import FloatArray
 
 __all__ = [
     "ShapeSearch", "axis_basis", "axis_basis_slope", "levenberg_marquardt", "lp_bounded_minimax",
-    "power_shape", "shifted_power_series", "unit_shape", "unit_shape_slope",
+    "power_shape", "shifted_power_series", "unit_flat", "unit_rows", "unit_shape", "unit_shape_slope",
 ]
 
 _LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
@@ -77,6 +77,18 @@ def _shape_values(t: FloatArray, t0: float, shape: FloatArray) -> FloatArray:
     """The inner polynomial Σ_i shape[i] T_{i+1}(t), minus its value at t0."""
     c = np.concatenate([[0.0], shape])
     return _CHEB.chebval(t, c) - _CHEB.chebval(t0, c)
+
+
+def unit_flat(flat: FloatArray) -> FloatArray:
+    """Flat shapes with each row of unit norm: a shape's length is free (its inner joint is
+    scaled afterwards), and left free it carries round-off from one search into the next."""
+    return np.concatenate(unit_rows(flat)) if flat.size else flat
+
+
+def unit_rows(flat: FloatArray) -> list[FloatArray]:
+    """Flat shapes (4L,) as L rows of unit norm."""
+    c = flat.reshape(-1, 4)
+    return list(c / np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None])
 
 
 def unit_shape(t: FloatArray, t0: float, shape: FloatArray) -> tuple[FloatArray, float]:
