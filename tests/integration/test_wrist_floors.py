@@ -33,7 +33,7 @@ from o2m.convert.converter import convert
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import sample_bounds
 from o2m.validate.jumps import opensim_length_steps
-from o2m.validate.muscles import LEN_PCT
+from o2m.validate.muscles import LEN_PCT, MA_P95_MM
 from tests.helpers import convert_options, require_models
 
 osim.Logger.setLevelString("error")
@@ -45,6 +45,13 @@ WRIST = "opensim-models/Models/WristModel/wrist.osim"
 #: too, on its own poses: P5 a sphere, P3 always on, P2 and P4 left out), FDPL 1.282 (1.282),
 #: FDPR 1.026 (1.032). FDSR (1.018 before) now shares a sphere between P2 and P3: 0.904.
 ROLE_FLOORS = {"FPL": 4.32, "FCU": 2.19, "FDPL": 1.29, "FDPR": 1.03}
+#: The muscles the gallery lists as missing a target (quick, 30 poses, seed 0), with the
+#: conversion's measured score there: the larger of its worst length error over 1 % and its worst
+#: moment-arm RMS over 2 mm (FPL 3.680, FCU 2.180, FDSI 1.101, FDSM 1.089, FDSR 1.221, FDSL 1.238,
+#: FDPI 1.086, FDPR 1.099, FDPL 1.358). The best role choice's score on the same poses, the shared
+#: sphere exactly at its points: 3.660, 1.861, 1.177, 1.150, 1.275, 1.261, 1.032, 1.098, 1.358.
+TARGET_FLOORS = {"FPL": 3.69, "FCU": 2.19, "FDSI": 1.11, "FDSM": 1.10, "FDSR": 1.23, "FDSL": 1.25, "FDPI": 1.09,
+                 "FDPR": 1.10, "FDPL": 1.36}
 
 
 @pytest.fixture(scope="module")
@@ -71,36 +78,54 @@ def _comparison_states(pair: ModelPair, n: int = 100, seed: int = 0) -> list:
 
 def _best_role_choice(pair: ModelPair, muscle: str, states: list) -> tuple[float, str]:
     """The smallest worst length error (%) over ``states`` of OpenSim's path with its
-    conditional points given roles (C: switching as OpenSim, S: always on, D: left out; a site
-    between two spheres), and that choice."""
-    path = pair.force(muscle).getGeometryPath()
-    pps = path.getPathPointSet()
+    conditional points given roles (C: switching as OpenSim, S: always on, D: left out, H and J:
+    a sphere shared by two points, at the point that is on; a site between two spheres), and
+    that choice."""
+    points, cond, where, active = _points(pair, muscle, states)
+    truth = np.array([pair.force(muscle).getGeometryPath().getLength(s) for s in states])
+    return min((float(np.max(np.abs(_choice_lengths(choice, cond, where, active) - truth) / truth)) * 100,
+                "".join(choice)) for choice in _role_choices(cond))
+
+
+def _points(pair: ModelPair, muscle: str, states: list) -> tuple[list, list, np.ndarray, np.ndarray]:
+    """``muscle``'s path points, each as a ConditionalPathPoint (or None), their ground places
+    (n_states, n_points, 3) and whether OpenSim has each on (n_states, n_points)."""
+    pps = pair.force(muscle).getGeometryPath().getPathPointSet()
     points = [pps.get(i) for i in range(pps.getSize())]
     cond = [osim.ConditionalPathPoint.safeDownCast(p) for p in points]
     where = np.array([[[p.getLocationInGround(s).get(i) for i in range(3)] for p in points] for s in states])
     active = np.array([[c is None or c.isActive(s) for c in cond] for s in states])
-    truth = np.array([path.getLength(s) for s in states])
+    return points, cond, where, active
+
+
+def _role_choices(cond: list):
+    """Every allowed role string for the run of conditional points ``cond`` (see
+    :func:`_best_role_choice`)."""
     run = [i for i, c in enumerate(cond) if c is not None]
-    best = (np.inf, "")
     for choice in itertools.product("CSDHJ", repeat=len(run)):
         if any(c == "H" and (j + 1 == len(run) or choice[j + 1] != "J" or not _disjoint(cond[run[j]], cond[run[j + 1]]))
                or c == "J" and (j == 0 or choice[j - 1] != "H") for j, c in enumerate(choice)):
             continue
         kept = [c for c in choice if c not in "DJ"]
-        if any(a in "CH" and b in "CH" for a, b in zip(kept[:-1], kept[1:], strict=True)):
-            continue
-        on, at = active.copy(), where.copy()
-        for j, (i, c) in enumerate(zip(run, choice, strict=True)):
-            on[:, i] = {"C": active[:, i], "S": True, "D": False, "J": False,
-                        "H": active[:, i] | active[:, min(i + 1, len(points) - 1)]}[c]
-            if c == "H":  # the shared sphere where the point that is on is (the best it can be)
-                at[:, i] = np.where(active[:, i, None], where[:, i], where[:, run[j + 1]])
-        length, prev = np.zeros(len(states)), at[:, 0]
-        for j in range(1, len(points)):
-            length += np.where(on[:, j], np.linalg.norm(at[:, j] - prev, axis=1), 0.0)
-            prev = np.where(on[:, j, None], at[:, j], prev)
-        best = min(best, (float(np.max(np.abs(length - truth) / truth)) * 100, "".join(choice)))
-    return best
+        if not any(a in "CH" and b in "CH" for a, b in zip(kept[:-1], kept[1:], strict=True)):
+            yield choice
+
+
+def _choice_lengths(choice: tuple[str, ...], cond: list, where: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """Length (m) per state of the straight path through the points on with roles ``choice``,
+    at places ``where``; ``active``: which points OpenSim has on."""
+    run = [i for i, c in enumerate(cond) if c is not None]
+    on, at = active.copy(), where.copy()
+    for j, (i, c) in enumerate(zip(run, choice, strict=True)):
+        on[:, i] = {"C": active[:, i], "S": True, "D": False, "J": False,
+                    "H": active[:, i] | active[:, min(i + 1, where.shape[1] - 1)]}[c]
+        if c == "H":  # the shared sphere where the point that is on is (the best it can be)
+            at[:, i] = np.where(active[:, i, None], where[:, i], where[:, run[j + 1]])
+    length, prev = np.zeros(len(where)), at[:, 0]
+    for j in range(1, where.shape[1]):
+        length += np.where(on[:, j], np.linalg.norm(at[:, j] - prev, axis=1), 0.0)
+        prev = np.where(on[:, j, None], at[:, j], prev)
+    return length
 
 
 def _disjoint(a, b) -> bool:
@@ -154,3 +179,51 @@ def test_run_roles_weigh_moment_arms(wrist):
     assert fdpm.max_len_pct < LEN_PCT, fdpm.max_len_pct
     arms = {c: 1e3 * e.rms for c, e in fdpm.moment_arms.items()}
     assert max(arms.values()) < MA_P95_MM, arms
+
+
+def _best_target_score(pair: ModelPair, muscle: str, states: list, h: float = 1e-4) -> tuple[float, str]:
+    """The smallest score over the allowed role choices (:func:`_best_role_choice`), and its
+    choice: the larger of the worst length error over ``states`` over 1 % and the worst moment-arm
+    RMS (central differences of ``h`` rad of each independent coordinate, OpenSim's points held
+    on or off as at the state) over 2 mm, as the converter weighs them."""
+    _, cond, where, active = _points(pair, muscle, states)
+    truth = np.array([pair.force(muscle).getGeometryPath().getLength(s) for s in states])
+    moved = {}
+    for c in pair.indep_names:
+        places = []
+        for step in (h, -h):
+            shifted = [pair.os_state({**pair.os_indep_values(s), c: pair.os_indep_values(s)[c] + step}) for s in states]
+            places.append(_points(pair, muscle, shifted)[2])
+        if np.abs(places[0] - places[1]).max() > 1e-12:
+            moved[c] = places
+    plain = [None] * active.shape[1]  # OpenSim's own path: every point as OpenSim has it
+    true_arms = {c: -(_choice_lengths((), plain, p, active) - _choice_lengths((), plain, m, active)) / (2 * h)
+                 for c, (p, m) in moved.items()}
+    best = (np.inf, "")
+    for choice in _role_choices(cond):
+        rel = np.abs(_choice_lengths(choice, cond, where, active) - truth) / truth
+        arms = [np.sqrt(np.mean((-(_choice_lengths(choice, cond, p, active) - _choice_lengths(choice, cond, m, active))
+                                 / (2 * h) - true_arms[c]) ** 2)) for c, (p, m) in moved.items()]
+        best = min(best, (max(rel.max() / (LEN_PCT / 100), max(arms) * 1e3 / MA_P95_MM), "".join(choice)))
+    return best
+
+
+def test_the_wrist_flexors_moment_arm_misses_are_the_role_floor(wrist):
+    """For the muscles of TARGET_FLOORS (every one the gallery lists as missing) no allowed role
+    choice, a shared sphere exactly at its points included, is within both targets (length 1 %,
+    moment arms 2 mm RMS) on the gallery's 30 poses: what they miss is the construction's floor
+    there, not o2m's choice. The conversion is no further from the targets than measured. (On
+    other poses the floor moves: over poses 1 to 50 of the 100 the length test draws, FDSI's and
+    FDSM's best choices reach 0.99 and 0.97, where the quartic that carries their shared sphere
+    leaves them at 1.1.)"""
+    from o2m.validate.muscles import compare_muscles
+
+    pair, conv = wrist
+    states = _comparison_states(pair, n=30)  # the comparison's own 30 poses
+    report = compare_muscles(pair.osim_path, conv.xml, n_poses=30, seed=0, progress=False)
+    for muscle, measured in TARGET_FLOORS.items():
+        floor, choice = _best_target_score(pair, muscle, states)
+        e = report.muscles[muscle]
+        got = max(e.max_len_pct / LEN_PCT, max(1e3 * a.rms for a in e.moment_arms.values()) / MA_P95_MM)
+        assert floor > 1, (muscle, floor, choice)
+        assert got <= measured, (muscle, got)
