@@ -272,12 +272,8 @@ def conditional_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, r
     point = path.points[k]
     cname, lo, hi = point.condition
     r = CONDITIONAL_RADIUS
-    values = _reference_active_values(ctx, point)
-    n_ground, _, _ = _bend(ctx, path, k, values, [q == "site" for q in roles])
-    n_body = ctx.b.ground_frames_at(values)[point.body].rot.T @ n_ground
-    # the tendon touches the sphere on the straight segment's side: through the point when it bends as here
-    centre = np.asarray(point.location, dtype=float) + r * n_body
-    u = _off_direction(ctx, path, k, roles, centre)
+    centre = _sphere_centre(ctx, path, k, [q == "site" for q in roles])
+    u = _off_direction(ctx, path, k, roles, lambda _: centre)
     gname = ctx.unique(f"{path.owner}-{point.name}_cond" if not point.name.startswith(path.owner)
                        else f"{point.name}_cond")
     pos = ctx.in_world(point.body, Transform(pos=centre)).pos
@@ -327,19 +323,17 @@ def _reference_active_values(ctx: PathContext, point: PathPoint) -> dict[str, fl
     cname, lo, hi = point.condition
     if lo <= ctx.b.ref[cname] <= hi:
         return ctx.b.coordinate_values()
-    base = ctx.b.drivers[cname].base
-    kind = ctx.b.coord_joint[base][1].kind if base in ctx.b.coord_joint else "rotation"
-    rlo, rhi = ctx.b.fit_range(base, kind)
+    rlo, rhi = _coordinate_range(ctx, cname)
     a, b = max(lo, rlo), min(hi, rhi)
-    return ctx.b.coordinate_values({base: 0.5 * (a + b) if a <= b else 0.5 * (lo + hi)})
+    return ctx.b.coordinate_values({ctx.b.drivers[cname].base: 0.5 * (a + b) if a <= b else 0.5 * (lo + hi)})
 
 
-def _bend(ctx: PathContext, path: Path, k: int, values: dict[str, float], keep: list[bool]
-          ) -> tuple[np.ndarray, float, np.ndarray]:
-    """Unit direction (ground) from the straight segment between the kept neighbours of point
-    ``k`` to the point, the length (m) the point adds to the path, in pose ``values``, and
-    the unit direction of that segment."""
+def _bend_normal(ctx: PathContext, path: Path, k: int, keep: list[bool]) -> np.ndarray:
+    """Unit direction (body frame of point ``k``) from the straight segment between its kept
+    neighbours to the point, at the reference pose with the point on
+    (:func:`_reference_active_values`)."""
     pts = path.points
+    values = _reference_active_values(ctx, pts[k])
     frames = ctx.b.ground_frames_at(values)
 
     def world(p: PathPoint) -> np.ndarray:
@@ -351,22 +345,29 @@ def _bend(ctx: PathContext, path: Path, k: int, values: dict[str, float], keep: 
     ac = c - a
     t = float(np.clip((p - a) @ ac / max(ac @ ac, 1e-18), 0.0, 1.0))
     off = p - (a + t * ac)
-    detour = float(np.linalg.norm(p - a) + np.linalg.norm(c - p) - np.linalg.norm(ac))
     n = float(np.linalg.norm(off))
     if n < 1e-9:  # on the straight line: any direction perpendicular to it
         helper = np.eye(3)[int(np.argmin(np.abs(ac)))]
         off = np.cross(ac, helper)
         n = float(np.linalg.norm(off))
-    return off / n, detour, ac / max(float(np.linalg.norm(ac)), 1e-18)
+    return frames[pts[k].body].rot.T @ (off / n)
 
 
-def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centre: np.ndarray,
-                   active: Callable[[dict[str, float]], bool] | None = None,
-                   centre_at: Callable[[dict[str, float]], np.ndarray] | None = None) -> np.ndarray:
-    """Unit direction (body frame of point ``k``) from the point towards which the straight
-    segment between its neighbouring sites passes in the sampled poses where OpenSim has the
-    point inactive (each pose weighted by the length the point would add there). For a shared
-    sphere: ``active`` says when it is on, ``centre_at`` where it is (body frame, m)."""
+def _sphere_centre(ctx: PathContext, path: Path, k: int, keep: list[bool]) -> np.ndarray:
+    """Where (body frame, m) the sphere standing for conditional point ``k`` is: one radius
+    beyond the point, on the side the straight segment between its kept neighbours passes, so
+    the tendon touching it goes through the point when it bends as at the reference pose."""
+    return np.asarray(path.points[k].location, dtype=float) + CONDITIONAL_RADIUS * _bend_normal(ctx, path, k, keep)
+
+
+def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str],
+                   centre_at: Callable[[dict[str, float]], np.ndarray],
+                   active: Callable[[dict[str, float]], bool] | None = None) -> np.ndarray:
+    """Unit direction (body frame of point ``k``) from the sphere's centre (``centre_at`` the
+    coordinates' values, body frame, m) towards which the straight segment between its
+    neighbouring sites passes in the sampled poses where OpenSim has the point inactive (each
+    pose weighted by the length the point would add there); for a shared sphere ``active``
+    says when it is on."""
     pts = path.points
     keep = [r == "site" for r in roles]
     before = next(i for i in range(k - 1, -1, -1) if keep[i])
@@ -376,8 +377,7 @@ def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centr
     for j, (_, values) in enumerate(ctx.pose_samples()):
         if (active(values) if active is not None else ctx.active(point, values)):
             continue
-        if centre_at is not None:
-            centre = centre_at(values)
+        centre = centre_at(values)
         frames = ctx.sample_frames(j)
         to_body = frames[point.body].inverse()
         a = to_body.apply(frames[pts[before].body].apply(ctx.location_at(pts[before], values)))
@@ -386,9 +386,7 @@ def _off_direction(ctx: PathContext, path: Path, k: int, roles: list[str], centr
         t = float(np.clip((centre - a) @ ab / max(ab @ ab, 1e-18), 0.0, 1.0))
         feet.append(a + t * ab - centre)
         weights.append(float(np.linalg.norm(centre - a) + np.linalg.norm(b - centre) - np.linalg.norm(ab)))
-    values = _reference_active_values(ctx, point)
-    n_ground, _, _ = _bend(ctx, path, k, values, keep)
-    n_body = ctx.b.ground_frames_at(values)[point.body].rot.T @ n_ground
+    n_body = _bend_normal(ctx, path, k, keep)
     if not feet:
         return -n_body
     f, w = np.array(feet), np.array(weights)
@@ -481,13 +479,7 @@ def shared_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, roles:
     cname = a.condition[0]
     r = CONDITIONAL_RADIUS
     keep = [q == "site" for q in roles]
-    places = []
-    for p, i in ((a, k), (b, k + 1)):
-        values = _reference_active_values(ctx, p)
-        n_ground, _, _ = _bend(ctx, path, i, values, keep)
-        n_body = ctx.b.ground_frames_at(values)[p.body].rot.T @ n_ground
-        places.append(np.asarray(p.location, dtype=float) + r * n_body)
-    ca, cb = places
+    ca, cb = _sphere_centre(ctx, path, k, keep), _sphere_centre(ctx, path, k + 1, keep)
     span = float(np.linalg.norm(ca - cb))
     e = (ca - cb) / span
     frac = _shared_fraction(ctx, a, b)
@@ -516,8 +508,8 @@ def shared_geom(ctx: PathContext, carriers: Carriers, path: Path, k: int, roles:
     def side(x, r=r, mid=mid, half=half, bump=bump):  # out (> r) in the gap, in (|d| < r) beyond
         return r * (1 + bump * (1 - ((np.asarray(x, dtype=float) - mid) / half) ** 2))
 
-    u = _off_direction(ctx, path, k, roles, ca, active=lambda v: ctx.active(a, v) or ctx.active(b, v),
-                       centre_at=lambda v: cb + float(carry(v[cname])) * e)
+    u = _off_direction(ctx, path, k, roles, lambda v: cb + float(carry(v[cname])) * e,
+                       active=lambda v: ctx.active(a, v) or ctx.active(b, v))
     dref = float(side(ctx.b.ref[cname]))
     sbody = carriers.body(body, f"{gname}_side_carrier", vec(dref * u))
     _slide(ctx, sbody, f"{gname}_switch", vec(u), dref, path, f"{a.name}/switch", cname, side, a)

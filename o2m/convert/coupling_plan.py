@@ -317,8 +317,9 @@ def plan_skeleton(axes: list[CoupledAxis], dofs: Mapping[tuple[str, str], int], 
                                                for a in group]
                 trial = plan_group(scaled, *room(True), lo, hi, refs[base], weight, aims, slope_targets=slopes,
                                    cache=cache)
-                if worst_of(trial) < split_worst:
-                    split, split_worst = trial, worst_of(trial)
+                trial_worst = worst_of(trial)
+                if trial_worst < split_worst:
+                    split, split_worst = trial, trial_worst
                 if split_worst < COUPLING_SPLIT_GAIN * worst or split_worst >= worst:
                     break  # kept, or splitting does not help at all
             if split_worst < COUPLING_SPLIT_GAIN * worst:
