@@ -188,11 +188,12 @@ def _best_target_score(pair: ModelPair, muscle: str, states: list, h: float = 1e
     on or off as at the state) over 2 mm, as the converter weighs them."""
     _, cond, where, active = _points(pair, muscle, states)
     truth = np.array([pair.force(muscle).getGeometryPath().getLength(s) for s in states])
+    values = [pair.os_indep_values(s) for s in states]
     moved = {}
     for c in pair.indep_names:
         places = []
         for step in (h, -h):
-            shifted = [pair.os_state({**pair.os_indep_values(s), c: pair.os_indep_values(s)[c] + step}) for s in states]
+            shifted = [pair.os_state({**v, c: v[c] + step}) for v in values]
             places.append(_points(pair, muscle, shifted)[2])
         if np.abs(places[0] - places[1]).max() > 1e-12:
             moved[c] = places
