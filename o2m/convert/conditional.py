@@ -27,7 +27,7 @@ import numpy as np
 
 from o2m.convert.carriers import CARRIER_ARMATURE, Carriers
 from o2m.convert.pathpoints import PathContext
-from o2m.convert.records import JointRecord
+from o2m.convert.records import Approximation, JointRecord
 from o2m.osim.paths import Path, PathPoint
 from o2m.transforms import Transform
 
@@ -130,7 +130,8 @@ def _run_roles(ctx: PathContext, path: Path, roles: list[str], run: list[int]) -
     full = np.array([ctx.straight_length(path, n) for n in range(len(where))])
     shareable = {j for j in range(len(run) - 1) if can_share(ctx, pts[run[j]], pts[run[j + 1]])}
     best = None
-    for choice in _run_choices(len(run), shareable):
+    choices = _run_choices(len(run), shareable)
+    for choice in choices:
         on, at = _choice_path(ctx, path, span, choice, where, active)
         rel = np.abs(_polyline(at, on) - truth) / np.maximum(full, 1e-12)
         few = active[:MOMENT_ARM_SAMPLES]
@@ -142,10 +143,16 @@ def _run_roles(ctx: PathContext, path: Path, roles: list[str], run: list[int]) -
         key = (max(float(rel.max()) / LENGTH_TARGET, arm / MOMENT_ARM_TARGET), float(np.sqrt(np.mean(rel**2))))
         if best is None or key < best[0]:
             best = (key, choice, float(rel.max()), arm)
-    (_, rms), choice, worst, arm = best
+    (score, rms), choice, worst, arm = best
     for k, c in zip(run, choice, strict=True):
         roles[k] = c
     spheres = [pts[k].name for k, c in zip(run, choice, strict=True) if c in GEOM_ROLES]
+    ctx.b.result.approximations.append(Approximation(
+        "ConditionalPathPoint", path.owner, f"consecutive conditional points {[pts[k].name for k in run]} as "
+        f"roles {list(choice)}, the best of {len(choices)} choices", 100 * worst, "%",
+        f"the straight path over {len(where)} sampled poses, moment arms within {1e3 * arm:.2g} mm RMS; "
+        + ("no choice is within the length and moment-arm targets" if score > 1 else "within the targets"),
+        floor=score > 1))
     for k, c in zip(run, choice, strict=True):
         if c in ("site", "dropped"):
             what = "left out" if c == "dropped" else "kept always on the path"

@@ -24,6 +24,9 @@ class Approximation:
     slope_error: float | None = None
     slope_rms: float | None = None
     slope_units: str = ""
+    #: True where no construction o2m tried is within the issue's targets here (over the
+    #: converter's sampled poses): the error is the floor of o2m's constructions, not a fit left short.
+    floor: bool = False
 
 
 @dataclass

@@ -28,7 +28,9 @@ def test_the_gallery_verdict_names_o2m_misses():
     assert targets_verdict({"k1_ok": True}) == "met"
     assert targets_verdict({"k1_ok": True, "misses": [{"at_floor": True}]}) == "OpenSim floors"
     verdict = targets_verdict({"k1_ok": True, "misses": [{"at_floor": True}, {"at_floor": False}]})
-    assert verdict.startswith("**missed**") and "1 of 2" in verdict
+    assert verdict.startswith("**missed**") and "1 of 2" in verdict and "floor" not in verdict
+    built = targets_verdict({"k1_ok": True, "misses": [{"at_floor": False, "construction": True}, {"at_floor": False}]})
+    assert "2 of 2 o2m's, 1 of them its constructions' floor" in built
     assert targets_verdict({"k1_ok": False}) == "**missed**"
 
 
