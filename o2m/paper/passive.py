@@ -1,0 +1,153 @@
+"""What OpenSim's passive muscles do that MuJoCo's cannot: the Schutte fibre ratchet.
+
+In the dataset's excitation sets about two thirds of the muscles are never excited. OpenSim's
+Schutte1993 muscles then keep their fibres as long as they have ever been in the set
+(:mod:`o2m.osim.fibres`): after the elbow extends to its limit and flexes back, the biceps'
+tendon goes slack while a rigid-tendon MuJoCo muscle (and o2m's fitted passive spring) keeps
+pulling. This module measures what that costs, with OpenSim's curves on MuJoCo's tendon lengths:
+
+- :func:`fibre_forces_along`: the passive muscles' forces along OpenSim's recorded trajectory,
+  against the recorded tendon forces (does the ratchet explain them?);
+- :func:`fibre_run`: the fitted MuJoCo model with the passive muscles' forces taken over by the
+  fibres, stepped beside it (what would a MuJoCo muscle with this memory give?).
+
+``python -m o2m.paper.passive`` prints both on the test and fresh sets.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from tqdm.auto import tqdm
+
+from o2m import models
+from o2m.mj.posing import joint_equality_plan
+from o2m.mj.simulate import initial_state
+from o2m.osim.fibres import PassiveFibre, passive_fibres
+from o2m.osim.simulate import read_initial_state
+from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment, load_fresh_experiment
+
+__all__ = ["fibre_forces_along", "fibre_run", "initial_fibre_lengths", "passive_muscles"]
+
+
+def passive_muscles(exp: Experiment, i: int, among: list[str] | None = None) -> list[str]:
+    """Muscles (of ``among``, default all) never excited in set ``i``."""
+    ds = exp.dataset
+    cols = [list(ds.activations.muscles).index(m) for m in exp.muscles]
+    exc = ds.activations.values[i][:, cols]
+    return [m for j, m in enumerate(exp.muscles) if np.all(exc[:, j] == 0) and (among is None or m in among)]
+
+
+def initial_fibre_lengths(exp: Experiment) -> dict[str, float]:
+    """Fibre lengths (m) the dataset's OpenSim runs started from (its initial state file)."""
+    state = read_initial_state(models.fetch(exp.dataset.meta["initial_state"]))
+    return {m: float(state[f"{m}.fiber_length"]) for m in exp.muscles if f"{m}.fiber_length" in state}
+
+
+def _lengths(model: mujoco.MjModel, exp: Experiment, i: int, actuators: list[int]) -> np.ndarray:
+    """MuJoCo's actuator lengths (T, len(actuators)) m at OpenSim's recorded poses of set ``i``."""
+    ds, plan, data = exp.dataset, joint_equality_plan(model), mujoco.MjData(model)
+    out = np.zeros((ds.coordinates.shape[1], len(actuators)))
+    for t, q in enumerate(ds.coordinates[i]):
+        mujoco.mj_setState(model, data, initial_state(model, dict(zip(ds.coordinate_names, q, strict=True)), plan=plan),
+                           mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        mujoco.mj_fwdPosition(model, data)
+        out[t] = data.actuator_length[actuators]
+    return out
+
+
+def fibre_forces_along(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveFibre], i: int,
+                       start: dict[str, float], ratchet: bool = True) -> np.ndarray:
+    """Tendon forces (T, len(fibres)) N of ``fibres`` along OpenSim's recorded poses of set ``i``
+    (MuJoCo's tendon lengths there), from the fibre lengths ``start``; ``ratchet`` False: each
+    at its static equilibrium instead (what a memoryless passive force gives)."""
+    names = list(fibres)
+    L = _lengths(model, exp, i, [model.actuator(n).id for n in names])
+    out = np.zeros_like(L)
+    for j, n in enumerate(names):
+        lf = start[n]
+        for t in range(len(L)):
+            lf = fibres[n].ratchet(L[t, j], lf) if ratchet else fibres[n].equilibrium(L[t, j])
+            out[t, j] = fibres[n].tendon_force(L[t, j], lf)
+    return out
+
+
+def fibre_run(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveFibre], i: int,
+              start: dict[str, float], ratchet: bool = True) -> np.ndarray:
+    """Joint trajectory (T, n_dofs) rad of ``model`` on set ``i`` with the muscles of ``fibres`` (all
+    passive in the set) pulling as those fibres, on MuJoCo's own tendon lengths, instead of as their
+    actuators and tendon springs and dampers; stepped with ``mj_step`` (the fibre updated before
+    each step, its force applied through the actuator's moment arms)."""
+    m = copy.copy(model)
+    acts = [model.actuator(n).id for n in fibres]
+    for a in acts:  # the fitted passive spring and damping belong to the muscle being replaced
+        t = m.actuator_trnid[a, 0]
+        m.tendon_stiffness[t], m.tendon_stiffnesspoly[t], m.tendon_damping[t] = 0.0, 0.0, 0.0
+    d = mujoco.MjData(m)
+    mujoco.mj_setState(m, d, exp.init[i], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    qadr = [m.jnt_qposadr[m.joint(n).id] for n in exp.dofs]
+    lf = {n: start[n] for n in fibres}
+    moment = np.zeros((m.nu, m.nv))
+    out = [d.qpos[qadr].copy()]
+    for ctrl in exp.controls[i]:
+        d.ctrl[:] = ctrl
+        mujoco.mj_fwdPosition(m, d)
+        mujoco.mju_sparse2dense(moment, d.actuator_moment, d.moment_rownnz, d.moment_rowadr, d.moment_colind)
+        pull = np.zeros(len(acts))
+        for j, (n, f) in enumerate(fibres.items()):
+            L = d.actuator_length[acts[j]]
+            lf[n] = f.ratchet(L, lf[n]) if ratchet else f.equilibrium(L)
+            pull[j] = f.tendon_force(L, lf[n])
+        d.qfrc_applied[:] = -pull @ moment[acts]
+        mujoco.mj_step(m, d)
+        out.append(d.qpos[qadr].copy())
+    return np.array(out[: exp.reference.shape[1]])
+
+
+def _table(exp: Experiment, model: mujoco.MjModel, sets: list[int], among: list[str], label: str) -> None:
+    start = initial_fibre_lengths(exp)
+    fibres = passive_fibres(models.fetch(exp.dataset.meta["model"]), among)
+    rows = {"memoryless": [], "ratchet": []}
+    for i in tqdm(sets, desc=label, unit="set"):
+        own = {n: fibres[n] for n in passive_muscles(exp, i, among)}
+        for kind in rows:
+            q = fibre_run(exp, model, own, i, start, ratchet=kind == "ratchet")
+            rows[kind].append(np.mean(np.abs(q - exp.reference[i]), axis=0))
+    base = np.mean(np.abs(_rollout(exp, model, sets) - exp.reference[sets]), axis=1)
+    print(f"{label}: {len(sets)} sets, mean absolute joint error (rad): " + " ".join(exp.dofs) + " mean")
+    named = [("fitted model", base)] + [(f"passive muscles as {k} fibres", np.array(v)) for k, v in rows.items()]
+    for name, err in named:
+        print(f"  {name:36s}" + "".join(f"{e:8.3f}" for e in err.mean(0)) + f"{err.mean():8.4f}"
+              f"  (median set {np.median(err.mean(1)):.4f})")
+
+
+def _rollout(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
+    from o2m.mj.simulate import rollout
+    return rollout(model, exp.init[sets], exp.controls[sets], joint_names=exp.dofs).coordinates
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=str(DATA_DIR))
+    ap.add_argument("--out", default="out/paper", help="folder of the converted model (converted if missing)")
+    a = ap.parse_args()
+    from o2m.paper.floor import crossing
+    from o2m.paper.force_fit import ForceFit
+
+    exp = load_experiment(a.data, a.out)
+    model = ForceFit.load(Path(a.data) / "results" / "muscle_forces.json").apply(exp.model)
+    among = sorted(set(crossing(exp, model, "elbow_flexion", exp.dataset.test[0]))
+                   | set(crossing(exp, model, "pro_sup", exp.dataset.test[0])))
+    print("fibres for the passive ones among:", " ".join(among))
+    _table(exp, model, list(exp.dataset.test), among, "test sets")
+    fresh = load_fresh_experiment(Path(a.data), a.out)
+    if fresh:
+        _table(fresh[0], model, fresh[1], among, "fresh sets")
+
+
+if __name__ == "__main__":
+    main()

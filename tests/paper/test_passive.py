@@ -1,0 +1,63 @@
+"""The passive-fibre runs (o2m.paper.passive) on a one-muscle pendulum."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import mujoco
+import numpy as np
+
+from o2m.osim.fibres import FIBRE_GRID, STRAIN_GRID, PassiveFibre
+from o2m.paper.passive import fibre_run, passive_muscles
+from tests.helpers import MUSCLE_PENDULUM
+
+
+def _pendulum(tmp_path, steps: int = 200):
+    xml = tmp_path / "pendulum.xml"
+    xml.write_text(MUSCLE_PENDULUM)
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    data = mujoco.MjData(model)
+    data.qpos[0] = 0.3
+    init = np.zeros((1, mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
+    mujoco.mj_getState(model, data, init[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    exp = SimpleNamespace(dofs=["swing"], init=init, controls=np.zeros((1, steps, 1)),
+                          reference=np.zeros((1, steps + 1, 1)))
+    return exp, model
+
+
+def _fibre(slack: float) -> PassiveFibre:
+    """A stiff linear tendon ``slack`` m long (0.2 m of optimal fibre, no pennation, Schutte's exponential)."""
+    passive = np.exp(8.0 * (FIBRE_GRID - 1.0)) / np.exp(4.0)
+    return PassiveFibre("lifter", 40.0, 0.2, slack, 0.0, 20.0 * STRAIN_GRID, passive)
+
+
+def test_a_slack_fibre_leaves_the_model_as_it_steps(tmp_path):
+    exp, model = _pendulum(tmp_path)
+    data = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, exp.init[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    plain = [data.qpos[0]]
+    for _ in range(exp.controls.shape[1]):
+        mujoco.mj_step(model, data)
+        plain.append(data.qpos[0])
+    q = fibre_run(exp, model, {"lifter": _fibre(slack=5.0)}, 0, {"lifter": 0.2})
+    np.testing.assert_allclose(q[:, 0], plain, atol=1e-12)
+
+
+def test_a_taut_fibre_pulls_and_the_ratchet_is_not_the_equilibrium(tmp_path):
+    """A fibre whose tendon is taut over the swing moves the pendulum, and keeping the fibre's longest
+    length (the ratchet) moves it otherwise than the memoryless equilibrium."""
+    exp, model = _pendulum(tmp_path, steps=400)
+    free = fibre_run(exp, model, {"lifter": _fibre(slack=5.0)}, 0, {"lifter": 0.2})
+    fibre = _fibre(slack=0.4)
+    ratchet = fibre_run(exp, model, {"lifter": fibre}, 0, {"lifter": 0.2})
+    memoryless = fibre_run(exp, model, {"lifter": fibre}, 0, {"lifter": 0.2}, ratchet=False)
+    assert np.abs(ratchet - free).max() > 0.01
+    assert np.abs(ratchet - memoryless).max() > 1e-3
+
+
+def test_passive_muscles_are_those_never_excited():
+    acts = SimpleNamespace(muscles=["a", "b", "c"], values=np.zeros((1, 5, 3)))
+    acts.values[0, 2, 1] = 0.3
+    exp = SimpleNamespace(dataset=SimpleNamespace(activations=acts), muscles=["c", "b", "a"])
+    assert passive_muscles(exp, 0) == ["c", "a"]
+    assert passive_muscles(exp, 0, among=["a"]) == ["a"]
