@@ -108,9 +108,28 @@ def fibre_run(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveF
     return np.array(out[: exp.reference.shape[1]])
 
 
+def _replay_table(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveFibre], sets: list[int],
+                  start: dict[str, float], label: str) -> None:
+    """Per muscle, RMS (N) of the fibre's force minus OpenSim's recorded one along the sets where it is passive."""
+    ds, errors = exp.dataset, {}
+    for i in tqdm(sets, desc=f"{label}, along OpenSim", unit="set"):
+        own = {n: fibres[n] for n in passive_muscles(exp, i, list(fibres))}
+        recorded = ds.tendon_forces[i][:, [ds.muscle_names.index(n) for n in own]].astype(float)
+        for kind in ("ratchet", "memoryless"):
+            forces = fibre_forces_along(exp, model, own, i, start, ratchet=kind == "ratchet")
+            for j, n in enumerate(own):  # the first sample is OpenSim's state before its first step
+                errors.setdefault(n, {}).setdefault(kind, []).append(forces[1:, j] - recorded[1:, j])
+    print(f"{label}: passive muscles' force along OpenSim's trajectories minus the recorded one, RMS N "
+          "(ratchet / memoryless), largest first:")
+    rms = {n: {k: float(np.sqrt(np.mean(np.concatenate(v) ** 2))) for k, v in e.items()} for n, e in errors.items()}
+    for n in sorted(rms, key=lambda n: -rms[n]["memoryless"])[:8]:
+        print(f"  {n:10s} {rms[n]['ratchet']:7.2f} / {rms[n]['memoryless']:7.2f}")
+
+
 def _table(exp: Experiment, model: mujoco.MjModel, sets: list[int], among: list[str], label: str) -> None:
     start = initial_fibre_lengths(exp)
     fibres = passive_fibres(models.fetch(exp.dataset.meta["model"]), among)
+    _replay_table(exp, model, fibres, sets, start, label)
     rows = {"memoryless": [], "ratchet": []}
     for i in tqdm(sets, desc=label, unit="set"):
         own = {n: fibres[n] for n in passive_muscles(exp, i, among)}

@@ -25,10 +25,11 @@ def _pendulum(tmp_path, steps: int = 200):
     return exp, model
 
 
-def _fibre(slack: float) -> PassiveFibre:
-    """A stiff linear tendon ``slack`` m long (0.2 m of optimal fibre, no pennation, Schutte's exponential)."""
+def _fibre(slack: float, force: float = 40.0) -> PassiveFibre:
+    """A stiff linear tendon ``slack`` m long (0.2 m of optimal fibre, no pennation, Schutte's exponential;
+    max isometric ``force`` N)."""
     passive = np.exp(8.0 * (FIBRE_GRID - 1.0)) / np.exp(4.0)
-    return PassiveFibre("lifter", 40.0, 0.2, slack, 0.0, 20.0 * STRAIN_GRID, passive)
+    return PassiveFibre("lifter", force, 0.2, slack, 0.0, 20.0 * STRAIN_GRID, passive)
 
 
 def test_a_slack_fibre_leaves_the_model_as_it_steps(tmp_path):
@@ -61,3 +62,19 @@ def test_passive_muscles_are_those_never_excited():
     exp = SimpleNamespace(dataset=SimpleNamespace(activations=acts), muscles=["c", "b", "a"])
     assert passive_muscles(exp, 0) == ["c", "a"]
     assert passive_muscles(exp, 0, among=["a"]) == ["a"]
+
+
+def test_along_a_swing_the_ratchet_never_pulls_harder_than_the_equilibrium(tmp_path):
+    """Along a recorded swing that stretches the tendon and lets it back, the ratchet's fibre is never
+    shorter than the equilibrium's, so its tendon pulls no harder, and less once the swing returns."""
+    from o2m.paper.passive import fibre_forces_along
+
+    exp, model = _pendulum(tmp_path)
+    t = np.linspace(0.0, 1.0, 101)
+    exp.dataset = SimpleNamespace(coordinate_names=["swing"], coordinates=(0.3 * np.sin(2 * np.pi * t))[None, :, None])
+    fibre = {"lifter": _fibre(slack=0.4, force=400.0)}
+    ratchet = fibre_forces_along(exp, model, fibre, 0, {"lifter": 0.2})[:, 0]
+    memoryless = fibre_forces_along(exp, model, fibre, 0, {"lifter": 0.2}, ratchet=False)[:, 0]
+    assert memoryless.max() > 2.0
+    assert np.all(ratchet <= memoryless + 1e-9)
+    assert (memoryless - ratchet).max() > 0.2 * memoryless.max()
