@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["correction_boxplot", "joint_error_bars", "make_figures", "overlay", "speed_bars"]
+__all__ = ["correction_boxplot", "joint_error_bars", "make_figures", "overlay", "passive_forces", "speed_bars"]
 
 
 def _plt():
@@ -94,6 +94,25 @@ def overlay(times: np.ndarray, dofs: list[str], opensim: np.ndarray, mujoco: dic
     np.atleast_1d(axes)[0].set_ylabel("angle (rad)")
     np.atleast_1d(axes)[0].legend(fontsize=7)
     fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def passive_forces(times: np.ndarray, angle: np.ndarray, recorded: np.ndarray, forces: dict[str, np.ndarray],
+                   title: str = "", angle_label: str = "elbow_flexion (rad)"):
+    """One never-excited muscle's tendon force (N) over a set: OpenSim's recorded one against each
+    labelled model of it, with a joint ``angle`` (rad) below; arrays of shape (T,)."""
+    plt = _plt()
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(6.4, 4.2), sharex=True, height_ratios=[2, 1])
+    top.plot(times, recorded, "k", lw=2, label="OpenSim (recorded)")
+    for label, f in forces.items():
+        top.plot(times, f, lw=1.2, label=label)
+    top.set_ylabel("tendon force (N)")
+    top.legend(fontsize=7)
+    top.set_title(title, fontsize=9)
+    bottom.plot(times, angle, "k", lw=1)
+    bottom.set_ylabel(angle_label, fontsize=8)
+    bottom.set_xlabel("time (s)")
     fig.tight_layout()
     return fig
 

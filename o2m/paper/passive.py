@@ -31,7 +31,8 @@ from o2m.osim.fibres import PassiveFibre, passive_fibres
 from o2m.osim.simulate import read_initial_state
 from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment, load_fresh_experiment
 
-__all__ = ["fibre_forces_along", "fibre_run", "initial_fibre_lengths", "passive_muscles"]
+__all__ = ["figure", "fibre_forces_along", "fibre_run", "fitted_passive_force", "initial_fibre_lengths",
+           "passive_muscles"]
 
 
 def passive_muscles(exp: Experiment, i: int, among: list[str] | None = None) -> list[str]:
@@ -149,16 +150,56 @@ def _rollout(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndar
     return rollout(model, exp.init[sets], exp.controls[sets], joint_names=exp.dofs).coordinates
 
 
+def fitted_passive_force(exp: Experiment, model: mujoco.MjModel, i: int, muscle: str) -> np.ndarray:
+    """The force (T,) N ``model``'s ``muscle`` pulls with, at zero activation, in OpenSim's recorded
+    states of set ``i`` (its passive force: the fitted tendon spring and damping)."""
+    from o2m.paper.force_fit import pulling_force
+
+    ds, plan, data = exp.dataset, joint_equality_plan(model), mujoco.MjData(model)
+    a, out = model.actuator(muscle).id, []
+    for q, v in zip(ds.coordinates[i], ds.speeds[i], strict=True):
+        state = initial_state(model, dict(zip(ds.coordinate_names, q, strict=True)),
+                              speeds=dict(zip(ds.coordinate_names, v, strict=True)), plan=plan)
+        mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        mujoco.mj_forward(model, data)
+        out.append(float(pulling_force(model, muscle, data.actuator_length[a], data.actuator_velocity[a], 0.0)))
+    return np.array(out)
+
+
+def figure(exp: Experiment, model: mujoco.MjModel, i: int, muscle: str, path: str | Path, where: str = "set") -> None:
+    """``path``: ``muscle``'s force over set ``i`` (never excited there), OpenSim's recorded one
+    against the ratchet fibre, the memoryless one and ``model``'s fitted muscle, with the elbow."""
+    from o2m.paper.figures import passive_forces
+
+    fibre = passive_fibres(models.fetch(exp.dataset.meta["model"]), [muscle])
+    start = initial_fibre_lengths(exp)
+    ds = exp.dataset
+    forces = {"ratchet fibre (o2m.osim.fibres)": fibre_forces_along(exp, model, fibre, i, start)[:, 0],
+              "memoryless fibre (static equilibrium)": fibre_forces_along(exp, model, fibre, i, start, False)[:, 0],
+              "MuJoCo, fitted muscle at activation 0": fitted_passive_force(exp, model, i, muscle)}
+    recorded = ds.tendon_forces[i][:, ds.muscle_names.index(muscle)].astype(float)
+    elbow = ds.coordinates[i][:, ds.coordinate_names.index("elbow_flexion")]
+    # the first sample is OpenSim's state before its first step (its force not yet the fibre's)
+    fig = passive_forces(ds.times[1:], elbow[1:], recorded[1:], {k: v[1:] for k, v in forces.items()},
+                         title=f"{muscle}, never excited, {where} {i}: OpenSim's fibre cannot shorten")
+    fig.savefig(path, dpi=150, metadata={"Software": None})
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(DATA_DIR))
     ap.add_argument("--out", default="out/paper", help="folder of the converted model (converted if missing)")
+    ap.add_argument("--figure", help="only draw BIClong's force over fresh set 4 into this PNG")
     a = ap.parse_args()
     from o2m.paper.floor import crossing
     from o2m.paper.force_fit import ForceFit
 
     exp = load_experiment(a.data, a.out)
     model = ForceFit.load(Path(a.data) / "results" / "muscle_forces.json").apply(exp.model)
+    if a.figure:
+        fresh = load_fresh_experiment(Path(a.data), a.out)
+        figure(fresh[0], model, 4, "BIClong", a.figure, where="fresh set")
+        return
     among = sorted(set(crossing(exp, model, "elbow_flexion", exp.dataset.test[0]))
                    | set(crossing(exp, model, "pro_sup", exp.dataset.test[0])))
     print("fibres for the passive ones among:", " ".join(among))

@@ -36,3 +36,13 @@ def test_figures_from_stored_results(tmp_path):
         assert a.read_bytes() == b.read_bytes(), a.name
         if a.suffix == ".pdf":
             assert b"/CreationDate" not in a.read_bytes(), a.name
+
+
+def test_passive_forces_draws_each_force_over_the_angle():
+    from o2m.paper.figures import passive_forces
+
+    t = np.arange(100) * 0.01
+    fig = passive_forces(t, np.sin(t), np.cos(t), {"a": np.cos(t) + 1, "b": np.zeros_like(t)}, title="x")
+    top, bottom = fig.axes
+    assert len(top.lines) == 3 and len(bottom.lines) == 1
+    np.testing.assert_allclose(top.lines[1].get_ydata(), np.cos(t) + 1)
