@@ -44,6 +44,11 @@ class PassiveFibre:
     tendon: np.ndarray
     passive: np.ndarray
 
+    @property
+    def strains(self) -> np.ndarray:
+        """The tendon strains (-) ``tendon`` is tabulated at (:data:`STRAIN_GRID`)."""
+        return STRAIN_GRID
+
     def cos_pennation(self, fibre_length: np.ndarray | float) -> np.ndarray:
         """cos of the pennation angle at ``fibre_length`` (m), constant muscle width."""
         s = np.minimum(self.sin_pennation_at_optimal * self.optimal_fiber_length / np.asarray(fibre_length), 1.0)

@@ -25,6 +25,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from o2m import models
+from o2m.mj.fibre_plugin import load as load_plugin
 from o2m.mj.posing import joint_equality_plan
 from o2m.mj.simulate import initial_state
 from o2m.osim.fibres import PassiveFibre, passive_fibres
@@ -32,7 +33,7 @@ from o2m.osim.simulate import read_initial_state
 from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment, load_fresh_experiment
 
 __all__ = ["figure", "fibre_forces_along", "fibre_run", "fitted_passive_force", "initial_fibre_lengths",
-           "passive_muscles"]
+           "passive_muscles", "plugin_run"]
 
 
 def passive_muscles(exp: Experiment, i: int, among: list[str] | None = None) -> list[str]:
@@ -109,6 +110,27 @@ def fibre_run(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveF
     return np.array(out[: exp.reference.shape[1]])
 
 
+def plugin_run(exp: Experiment, fitted_xml: str | Path, fibres: dict[str, PassiveFibre], i: int,
+               start: dict[str, float]) -> np.ndarray:
+    """:func:`fibre_run`'s trajectory (T, n_dofs) rad, with the fibres inside MuJoCo as ``o2m.fibre``
+    plugins (:mod:`o2m.mj.fibre_plugin`, loaded by the caller) on ``fitted_xml``, stepped by
+    ``mujoco.rollout``."""
+    from mujoco import rollout
+
+    from o2m.mj.fibre_plugin import with_fibres
+
+    xml = with_fibres(fitted_xml, Path(fitted_xml).with_name(Path(fitted_xml).stem + "_fibres.xml"), fibres, start)
+    m = mujoco.MjModel.from_xml_path(str(xml))
+    d = mujoco.MjData(m)  # its fibres at their start; the rest from the experiment's initial state
+    mujoco.mj_setState(m, d, exp.init[i], mujoco.mjtState.mjSTATE_TIME | mujoco.mjtState.mjSTATE_PHYSICS)
+    init = np.zeros(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
+    mujoco.mj_getState(m, d, init, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    qadr = [m.jnt_qposadr[m.joint(n).id] for n in exp.dofs]
+    first = d.qpos[qadr].copy()
+    states, _ = rollout.rollout(m, d, init[None], exp.controls[i][None])
+    return np.vstack([first, states[0][:, [1 + a for a in qadr]]])[: exp.reference.shape[1]]  # after the time
+
+
 def _replay_table(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveFibre], sets: list[int],
                   start: dict[str, float], label: str) -> None:
     """Per muscle, RMS (N) of the fibre's force minus OpenSim's recorded one along the sets where it is passive."""
@@ -127,15 +149,17 @@ def _replay_table(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, Pass
         print(f"  {n:10s} {rms[n]['ratchet']:7.2f} / {rms[n]['memoryless']:7.2f}")
 
 
-def _table(exp: Experiment, model: mujoco.MjModel, sets: list[int], among: list[str], label: str) -> None:
+def _table(exp: Experiment, model: mujoco.MjModel, fitted_xml: Path, sets: list[int], among: list[str],
+           label: str) -> None:
     start = initial_fibre_lengths(exp)
     fibres = passive_fibres(models.fetch(exp.dataset.meta["model"]), among)
     _replay_table(exp, model, fibres, sets, start, label)
-    rows = {"memoryless": [], "ratchet": []}
+    rows = {"memoryless": [], "ratchet": [], "ratchet, in MuJoCo (o2m.fibre plugin)": []}
     for i in tqdm(sets, desc=label, unit="set"):
         own = {n: fibres[n] for n in passive_muscles(exp, i, among)}
         for kind in rows:
-            q = fibre_run(exp, model, own, i, start, ratchet=kind == "ratchet")
+            q = (plugin_run(exp, fitted_xml, own, i, start) if "plugin" in kind
+                 else fibre_run(exp, model, own, i, start, ratchet=kind == "ratchet"))
             rows[kind].append(np.mean(np.abs(q - exp.reference[i]), axis=0))
     base = np.mean(np.abs(_rollout(exp, model, sets) - exp.reference[sets]), axis=1)
     print(f"{label}: {len(sets)} sets, mean absolute joint error (rad): " + " ".join(exp.dofs) + " mean")
@@ -195,7 +219,8 @@ def main() -> None:
     from o2m.paper.force_fit import ForceFit
 
     exp = load_experiment(a.data, a.out)
-    model = ForceFit.load(Path(a.data) / "results" / "muscle_forces.json").apply(exp.model)
+    forces = ForceFit.load(Path(a.data) / "results" / "muscle_forces.json")
+    model = forces.apply(exp.model)
     if a.figure:
         fresh = load_fresh_experiment(Path(a.data), a.out)
         figure(fresh[0], model, 4, "BIClong", a.figure, where="fresh set")
@@ -203,10 +228,12 @@ def main() -> None:
     among = sorted(set(crossing(exp, model, "elbow_flexion", exp.dataset.test[0]))
                    | set(crossing(exp, model, "pro_sup", exp.dataset.test[0])))
     print("fibres for the passive ones among:", " ".join(among))
-    _table(exp, model, list(exp.dataset.test), among, "test sets")
+    fitted_xml = forces.write_mjcf(exp.xml, Path(exp.xml).with_name(Path(exp.xml).stem + "_forces.xml"))
+    load_plugin(Path(a.out))
+    _table(exp, model, fitted_xml, list(exp.dataset.test), among, "test sets")
     fresh = load_fresh_experiment(Path(a.data), a.out)
     if fresh:
-        _table(fresh[0], model, fresh[1], among, "fresh sets")
+        _table(fresh[0], model, fitted_xml, fresh[1], among, "fresh sets")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,92 @@
+"""The o2m.fibre plugin (o2m.mj.fibre_plugin) against the same fibre stepped in Python."""
+
+from __future__ import annotations
+
+import shutil
+from types import SimpleNamespace
+
+import mujoco
+import numpy as np
+import pytest
+
+from o2m.mj import fibre_plugin
+from o2m.osim.fibres import FIBRE_GRID, STRAIN_GRID, PassiveFibre
+from o2m.paper.passive import fibre_run
+from tests.helpers import MUSCLE_PENDULUM
+
+pytestmark = pytest.mark.skipif(not (shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")),
+                                reason="no C compiler to build the plugin")
+
+
+def _fibre() -> PassiveFibre:
+    """A stiff linear tendon 0.4 m long, 0.2 m of optimal fibre, Schutte's exponential, 400 N."""
+    passive = np.exp(8.0 * (FIBRE_GRID - 1.0)) / np.exp(4.0)
+    return PassiveFibre("lifter", 400.0, 0.2, 0.4, 0.0, 20.0 * STRAIN_GRID, passive)
+
+
+@pytest.fixture(scope="module")
+def pendulum(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fibre")
+    fibre_plugin.load(folder)
+    xml = folder / "pendulum.xml"
+    xml.write_text(MUSCLE_PENDULUM.replace('lengthrange="0.3 0.9"', 'lengthrange="0.45 0.75"'))
+    out = fibre_plugin.with_fibres(xml, folder / "pendulum_fibre.xml", {"lifter": _fibre()}, {"lifter": 0.2})
+    return mujoco.MjModel.from_xml_path(str(xml)), mujoco.MjModel.from_xml_path(str(out))
+
+
+def _swing(model: mujoco.MjModel, steps: int = 400) -> tuple[np.ndarray, np.ndarray]:
+    data = mujoco.MjData(model)
+    data.qpos[0] = 0.3
+    mujoco.mj_forward(model, data)
+    state = np.zeros(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
+    mujoco.mj_getState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    q = [data.qpos[0]]
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
+        q.append(data.qpos[0])
+    return np.array(q), state
+
+
+def test_the_plugin_steps_the_fibre_as_python_does(pendulum):
+    plain, with_plugin = pendulum
+    q, _ = _swing(with_plugin)
+    free, init = _swing(plain)
+    exp = SimpleNamespace(dofs=["swing"], init=init[None], controls=np.zeros((1, 400, 1)),
+                          reference=np.zeros((1, 401, 1)))
+    python = fibre_run(exp, plain, {"lifter": _fibre()}, 0, {"lifter": 0.2})[:, 0]
+    assert np.abs(q - free).max() > 0.01  # the fibre pulls
+    # as the same fibre stepped in Python: 4.4e-6 rad apart at most, the equilibrium table's linear interpolation
+    np.testing.assert_allclose(q, python, atol=1e-5)
+
+
+def test_the_fibre_length_is_state_that_rollout_carries(pendulum):
+    _, model = pendulum
+    q, init = _swing(model)
+    assert model.npluginstate == 1 and init[-1] == pytest.approx(0.2)
+    from mujoco import rollout
+
+    states, _ = rollout.rollout(model, mujoco.MjData(model), init[None], np.zeros((1, 400, 1)))
+    np.testing.assert_allclose(states[0, :, 1], q[1:], atol=1e-12)
+    long = init.copy()
+    long[-1] = 0.5  # a fibre this long leaves the tendon slack: the pendulum swings free
+    slack, _ = rollout.rollout(model, mujoco.MjData(model), long[None], np.zeros((1, 400, 1)))
+    assert np.abs(slack[0, :, 1] - q[1:]).max() > 0.01
+    assert slack[0, -1, -1] == pytest.approx(0.5)  # and the fibre never shortens
+
+
+def test_plugin_run_is_fibre_run_inside_mujoco(tmp_path):
+    """o2m.paper.passive.plugin_run (the plugin written into the model, stepped by mujoco.rollout)
+    follows o2m.paper.passive.fibre_run (the fibre stepped in Python beside mj_step)."""
+    from o2m.paper.passive import plugin_run
+
+    fibre_plugin.load(tmp_path)
+    xml = tmp_path / "pendulum.xml"
+    xml.write_text(MUSCLE_PENDULUM.replace('lengthrange="0.3 0.9"', 'lengthrange="0.45 0.75"'))
+    plain = mujoco.MjModel.from_xml_path(str(xml))
+    _, init = _swing(plain, steps=0)
+    exp = SimpleNamespace(dofs=["swing"], init=init[None], controls=np.zeros((1, 300, 1)),
+                          reference=np.zeros((1, 301, 1)))
+    inside = plugin_run(exp, xml, {"lifter": _fibre()}, 0, {"lifter": 0.2})
+    beside = fibre_run(exp, plain, {"lifter": _fibre()}, 0, {"lifter": 0.2})
+    assert inside.shape == beside.shape == (301, 1)
+    np.testing.assert_allclose(inside, beside, atol=1e-5)
