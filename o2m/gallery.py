@@ -177,10 +177,13 @@ def _merged(previous: Path, rows: list[GalleryRow], order: list[str], settings: 
     """``rows`` in place of the same models' rows of an earlier run's ``gallery.json`` made with the
     same ``settings`` (none if there is no such run: the page then lists ``rows`` alone)."""
     earlier = json.loads(previous.read_text()) if previous.exists() else {}
-    if isinstance(earlier, dict) and {k: earlier.get(k) for k in settings} != settings:
-        raise ValueError(f"{previous} was made with {({k: earlier.get(k) for k in settings})}, not {settings}: "
-                         "run the whole gallery, or the same settings")
-    by_name = {r["model"]: GalleryRow(**r) for r in earlier.get("rows", [])} if isinstance(earlier, dict) else {}
+    if not isinstance(earlier, dict):  # a run from before the settings were kept: which ones is unknown
+        earlier = {}
+    made_with = {k: earlier.get(k) for k in settings}
+    if earlier and made_with != settings:
+        raise ValueError(f"{previous} was made with {made_with}, not {settings}: run the whole gallery, or the "
+                         "same settings")
+    by_name = {r["model"]: GalleryRow(**r) for r in earlier.get("rows", [])}
     by_name.update({r.model: r for r in rows})
     return [by_name[n] for n in order if n in by_name]
 

@@ -18,3 +18,6 @@ def test_a_partial_gallery_run_updates_its_rows_in_the_last_run(tmp_path):
     assert [(r.model, r.seconds) for r in rows] == [("a", 1.0), ("b", 9.0)]
     with pytest.raises(ValueError, match="whole gallery"):
         _merged(earlier, [], ["a"], {"quick": True, "poses": 50})
+    first = _merged(tmp_path / "none.json", [GalleryRow("b", "B", "converted", 9.0)], ["a", "b"],
+                    {"quick": False, "poses": 50})
+    assert [r.model for r in first] == ["b"]  # no earlier run: the page lists this run's rows alone
