@@ -56,7 +56,9 @@ def _forces(exp: Experiment, sets: list[int]) -> np.ndarray:
     return ds.tendon_forces[sets][:, :, cols].astype(float)
 
 
-def _state(model: mujoco.MjModel, exp: Experiment, i: int, k: int, plan) -> np.ndarray:
+def recorded_state(model: mujoco.MjModel, exp: Experiment, i: int, k: int, plan) -> np.ndarray:
+    """``model``'s full physics state at OpenSim's recorded state ``k`` of set ``i`` (coordinates
+    and speeds; the equality-driven joints from ``plan``, :func:`o2m.mj.posing.joint_equality_plan`)."""
     ds = exp.dataset
     return initial_state(model, dict(zip(ds.coordinate_names, ds.coordinates[i, k], strict=True)),
                          speeds=dict(zip(ds.coordinate_names, ds.speeds[i, k], strict=True)), plan=plan)
@@ -65,7 +67,7 @@ def _state(model: mujoco.MjModel, exp: Experiment, i: int, k: int, plan) -> np.n
 def tendon_force_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
     """Joint trajectories (B, T, n_dofs) of the force-driven ``model`` under OpenSim's tendon forces."""
     plan = joint_equality_plan(model)
-    init = np.stack([_state(model, exp, i, 0, plan) for i in sets])
+    init = np.stack([recorded_state(model, exp, i, 0, plan) for i in sets])
     tr = rollout(model, init, controls_from_forces(model, exp.muscles, _forces(exp, sets)), joint_names=exp.dofs)
     return tr.coordinates
 
@@ -87,7 +89,7 @@ def generalized_forces(exp: Experiment, model: mujoco.MjModel, i: int,
     out = np.empty((len(ctrl), model.nv))
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     for k in range(len(ctrl)):
-        mujoco.mj_setState(model, data, _state(model, exp, i, k, plan), spec)
+        mujoco.mj_setState(model, data, recorded_state(model, exp, i, k, plan), spec)
         data.ctrl[:] = ctrl[k]
         mujoco.mj_forward(model, data)
         out[k] = data.qfrc_actuator
@@ -104,7 +106,7 @@ def _applied_run(exp: Experiment, model: mujoco.MjModel, i: int, ctrl: np.ndarra
     ``ctrl`` (T - 1, nu) and joint forces ``applied`` (T - 1, nv) N·m or N, changed by ``feedback``."""
     adr = [joint_qpos_address(model, d) for d in exp.dofs]
     data = mujoco.MjData(model)
-    mujoco.mj_setState(model, data, _state(model, exp, i, 0, joint_equality_plan(model)),
+    mujoco.mj_setState(model, data, recorded_state(model, exp, i, 0, joint_equality_plan(model)),
                        mujoco.mjtState.mjSTATE_FULLPHYSICS)
     q = [data.qpos[adr].copy()]
     for k in range(len(ctrl)):
@@ -175,7 +177,7 @@ def muscle_feedback_run(exp: Experiment, model: mujoco.MjModel, muscle_model: mu
 
         def feedback(data: mujoco.MjData, k: int, i=i, ctrl=ctrl) -> None:
             act = ds.opensim_activations[i, k, act_cols].astype(float)
-            mujoco.mj_setState(muscle_model, recorded, _state(muscle_model, exp, i, k, plan), spec)
+            mujoco.mj_setState(muscle_model, recorded, recorded_state(muscle_model, exp, i, k, plan), spec)
             live.qpos[:], live.qvel[:] = data.qpos, data.qvel
             for d in (live, recorded):
                 d.act[muscle_model.actuator_actadr[ids]] = act
@@ -217,7 +219,7 @@ def exact_carrier_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -
     for i in sets:
         f = _forces(exp, [i])
         ctrl = controls_from_forces(model, exp.muscles, f)[0]
-        mujoco.mj_setState(model, data, _state(model, exp, i, 0, plan), spec)
+        mujoco.mj_setState(model, data, recorded_state(model, exp, i, 0, plan), spec)
         data.ctrl[:] = 0.0
         q = [data.qpos[[adr[d] for d in exp.dofs]].copy()]
         for k in range(len(ctrl)):
@@ -326,7 +328,7 @@ def replay_instability(exp: Experiment, model: mujoco.MjModel, sets: list[int], 
         for k in range(0, ds.coordinates.shape[1], stride):
             pose = dict(zip(ds.coordinate_names, ds.coordinates[i, k].astype(float), strict=True))
             slope = float(_forces(exp, [i])[0, k] @ arm_slopes(arms, pose, [dof], h)[:, 0, 0])
-            mujoco.mj_setState(model, data, _state(model, exp, i, k, plan), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+            mujoco.mj_setState(model, data, recorded_state(model, exp, i, k, plan), mujoco.mjtState.mjSTATE_FULLPHYSICS)
             mujoco.mj_forward(model, data)
             inverse_mass = np.zeros(model.nv)
             mujoco.mj_solveM(model, data, inverse_mass[None], unit[None])

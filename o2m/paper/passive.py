@@ -28,10 +28,10 @@ from o2m import models
 from o2m.errors import O2MError
 from o2m.mj.fibre_plugin import load as load_plugin
 from o2m.mj.posing import joint_equality_plan
-from o2m.mj.simulate import initial_state
 from o2m.osim.fibres import PassiveFibre, passive_fibres
 from o2m.osim.simulate import read_initial_state
-from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment, load_fresh_experiment
+from o2m.paper.floor import recorded_state
+from o2m.paper.pipeline import DATA_DIR, Experiment, joint_mae, load_experiment, load_fresh_experiment
 
 __all__ = ["figure", "fibre_forces_along", "fibre_run", "fitted_passive_force", "initial_fibre_lengths",
            "passive_muscles", "plugin_run"]
@@ -51,16 +51,14 @@ def initial_fibre_lengths(exp: Experiment) -> dict[str, float]:
     return {m: float(state[f"{m}.fiber_length"]) for m in exp.muscles if f"{m}.fiber_length" in state}
 
 
-def _lengths(model: mujoco.MjModel, exp: Experiment, i: int, actuators: list[int]) -> np.ndarray:
-    """MuJoCo's actuator lengths (T, len(actuators)) m at OpenSim's recorded poses of set ``i``."""
-    ds, plan, data = exp.dataset, joint_equality_plan(model), mujoco.MjData(model)
-    out = np.zeros((ds.coordinates.shape[1], len(actuators)))
-    for t, q in enumerate(ds.coordinates[i]):
-        mujoco.mj_setState(model, data, initial_state(model, dict(zip(ds.coordinate_names, q, strict=True)), plan=plan),
-                           mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        mujoco.mj_fwdPosition(model, data)
-        out[t] = data.actuator_length[actuators]
-    return out
+def _along(model: mujoco.MjModel, exp: Experiment, i: int):
+    """``model``'s data at each of OpenSim's recorded states of set ``i`` in turn, forward-computed
+    (one ``mjData``, overwritten)."""
+    plan, data = joint_equality_plan(model), mujoco.MjData(model)
+    for k in range(exp.dataset.coordinates.shape[1]):
+        mujoco.mj_setState(model, data, recorded_state(model, exp, i, k, plan), mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        mujoco.mj_forward(model, data)
+        yield data
 
 
 def fibre_forces_along(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveFibre], i: int,
@@ -69,7 +67,8 @@ def fibre_forces_along(exp: Experiment, model: mujoco.MjModel, fibres: dict[str,
     (MuJoCo's tendon lengths there), from the fibre lengths ``start``; ``ratchet`` False: each
     at its static equilibrium instead (what a memoryless passive force gives)."""
     names = list(fibres)
-    L = _lengths(model, exp, i, [model.actuator(n).id for n in names])
+    acts = [model.actuator(n).id for n in names]
+    L = np.array([data.actuator_length[acts] for data in _along(model, exp, i)])
     out = np.zeros_like(L)
     for j, n in enumerate(names):
         lf = start[n]
@@ -164,16 +163,11 @@ def _table(exp: Experiment, model: mujoco.MjModel, fitted_xml: Path | None, sets
             q = (plugin_run(exp, fitted_xml, own, i, start) if "plugin" in kind
                  else fibre_run(exp, model, own, i, start, ratchet="ratchet" in kind))
             rows[kind].append(np.mean(np.abs(q - exp.reference[i]), axis=0))
-    base = np.mean(np.abs(_rollout(exp, model, sets) - exp.reference[sets]), axis=1)
+    base = joint_mae(exp, model, sets)[0]
     print(f"{label}: {len(sets)} sets, mean absolute joint error (rad): " + " ".join(exp.dofs) + " mean")
     for name, err in [("fitted model", base)] + [(k, np.array(v)) for k, v in rows.items()]:
         print(f"  {name:44s}" + "".join(f"{e:8.3f}" for e in err.mean(0)) + f"{err.mean():8.4f}"
               f"  (median set {np.median(err.mean(1)):.4f})")
-
-
-def _rollout(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:
-    from o2m.mj.simulate import rollout
-    return rollout(model, exp.init[sets], exp.controls[sets], joint_names=exp.dofs).coordinates
 
 
 def fitted_passive_force(exp: Experiment, model: mujoco.MjModel, i: int, muscle: str) -> np.ndarray:
@@ -181,16 +175,9 @@ def fitted_passive_force(exp: Experiment, model: mujoco.MjModel, i: int, muscle:
     states of set ``i`` (its passive force: the fitted tendon spring and damping)."""
     from o2m.paper.force_fit import pulling_force
 
-    ds, plan, data = exp.dataset, joint_equality_plan(model), mujoco.MjData(model)
-    a, out = model.actuator(muscle).id, []
-    for q, v in zip(ds.coordinates[i], ds.speeds[i], strict=True):
-        state = initial_state(model, dict(zip(ds.coordinate_names, q, strict=True)),
-                              speeds=dict(zip(ds.coordinate_names, v, strict=True)), plan=plan)
-        mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        mujoco.mj_forward(model, data)
-        out.append(float(pulling_force(model, muscle, data.actuator_length[a], data.actuator_velocity[a], 0.0)))
-    return np.array(out)
-
+    a = model.actuator(muscle).id
+    return np.array([pulling_force(model, muscle, data.actuator_length[a], data.actuator_velocity[a], 0.0)
+                     for data in _along(model, exp, i)])
 
 def figure(exp: Experiment, model: mujoco.MjModel, i: int, muscle: str, path: str | Path, where: str = "set") -> None:
     """``path``: ``muscle``'s force over set ``i`` (never excited there), OpenSim's recorded one

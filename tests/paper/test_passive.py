@@ -7,9 +7,8 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 
-from o2m.osim.fibres import FIBRE_GRID, STRAIN_GRID, PassiveFibre
 from o2m.paper.passive import fibre_run, passive_muscles
-from tests.helpers import MUSCLE_PENDULUM
+from tests.helpers import MUSCLE_PENDULUM, pendulum_fibre
 
 
 def _pendulum(tmp_path, steps: int = 200):
@@ -25,13 +24,6 @@ def _pendulum(tmp_path, steps: int = 200):
     return exp, model
 
 
-def _fibre(slack: float, force: float = 40.0) -> PassiveFibre:
-    """A stiff linear tendon ``slack`` m long (0.2 m of optimal fibre, no pennation, Schutte's exponential;
-    max isometric ``force`` N)."""
-    passive = np.exp(8.0 * (FIBRE_GRID - 1.0)) / np.exp(4.0)
-    return PassiveFibre("lifter", force, 0.2, slack, 0.0, 20.0 * STRAIN_GRID, passive)
-
-
 def test_a_slack_fibre_leaves_the_model_as_it_steps(tmp_path):
     exp, model = _pendulum(tmp_path)
     data = mujoco.MjData(model)
@@ -40,7 +32,7 @@ def test_a_slack_fibre_leaves_the_model_as_it_steps(tmp_path):
     for _ in range(exp.controls.shape[1]):
         mujoco.mj_step(model, data)
         plain.append(data.qpos[0])
-    q = fibre_run(exp, model, {"lifter": _fibre(slack=5.0)}, 0, {"lifter": 0.2})
+    q = fibre_run(exp, model, {"lifter": pendulum_fibre(slack=5.0, force=40.0)}, 0, {"lifter": 0.2})
     np.testing.assert_allclose(q[:, 0], plain, atol=1e-12)
 
 
@@ -48,8 +40,8 @@ def test_a_taut_fibre_pulls_and_the_ratchet_is_not_the_equilibrium(tmp_path):
     """A fibre whose tendon is taut over the swing moves the pendulum, and keeping the fibre's longest
     length (the ratchet) moves it otherwise than the memoryless equilibrium."""
     exp, model = _pendulum(tmp_path, steps=400)
-    free = fibre_run(exp, model, {"lifter": _fibre(slack=5.0)}, 0, {"lifter": 0.2})
-    fibre = _fibre(slack=0.4)
+    free = fibre_run(exp, model, {"lifter": pendulum_fibre(slack=5.0, force=40.0)}, 0, {"lifter": 0.2})
+    fibre = pendulum_fibre(slack=0.4, force=40.0)
     ratchet = fibre_run(exp, model, {"lifter": fibre}, 0, {"lifter": 0.2})
     memoryless = fibre_run(exp, model, {"lifter": fibre}, 0, {"lifter": 0.2}, ratchet=False)
     assert np.abs(ratchet - free).max() > 0.01
@@ -71,8 +63,9 @@ def test_along_a_swing_the_ratchet_never_pulls_harder_than_the_equilibrium(tmp_p
 
     exp, model = _pendulum(tmp_path)
     t = np.linspace(0.0, 1.0, 101)
-    exp.dataset = SimpleNamespace(coordinate_names=["swing"], coordinates=(0.3 * np.sin(2 * np.pi * t))[None, :, None])
-    fibre = {"lifter": _fibre(slack=0.4, force=400.0)}
+    q = (0.3 * np.sin(2 * np.pi * t))[None, :, None]
+    exp.dataset = SimpleNamespace(coordinate_names=["swing"], coordinates=q, speeds=np.zeros_like(q))
+    fibre = {"lifter": pendulum_fibre(slack=0.4, force=400.0)}
     ratchet = fibre_forces_along(exp, model, fibre, 0, {"lifter": 0.2})[:, 0]
     memoryless = fibre_forces_along(exp, model, fibre, 0, {"lifter": 0.2}, ratchet=False)[:, 0]
     assert memoryless.max() > 2.0
