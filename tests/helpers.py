@@ -108,6 +108,18 @@ MUSCLE_PENDULUM = """
 """
 
 
+
+def pendulum_fibre(slack: float, force: float):
+    """An :class:`o2m.osim.fibres.PassiveFibre` for MUSCLE_PENDULUM's "lifter": a stiff linear tendon
+    ``slack`` m long, 0.2 m of optimal fibre, no pennation, Schutte's exponential passive curve,
+    max isometric ``force`` N."""
+    import numpy as np
+
+    from o2m.osim.fibres import FIBRE_GRID, STRAIN_GRID, PassiveFibre
+
+    passive = np.exp(8.0 * (FIBRE_GRID - 1.0)) / np.exp(4.0)
+    return PassiveFibre("lifter", force, 0.2, slack, 0.0, 20.0 * STRAIN_GRID, passive)
+
 def pin_pendulum(name: str, q_range: tuple[float, float] = (-1.0, 1.5),
                  arm_com: tuple[float, float, float] = (0.15, 0.0, 0.0)):
     """An OpenSim model ``name``: ground -> body "arm" (1 kg, centre of mass ``arm_com`` m,

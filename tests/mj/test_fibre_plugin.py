@@ -10,18 +10,14 @@ import numpy as np
 import pytest
 
 from o2m.mj import fibre_plugin
-from o2m.osim.fibres import FIBRE_GRID, STRAIN_GRID, PassiveFibre
 from o2m.paper.passive import fibre_run
-from tests.helpers import MUSCLE_PENDULUM
+from tests.helpers import MUSCLE_PENDULUM, pendulum_fibre
+
+#: The pendulum's muscle as a fibre whose tendon is taut over the swing.
+FIBRES = {"lifter": pendulum_fibre(slack=0.4, force=400.0)}
 
 pytestmark = pytest.mark.skipif(not (shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")),
                                 reason="no C compiler to build the plugin")
-
-
-def _fibre() -> PassiveFibre:
-    """A stiff linear tendon 0.4 m long, 0.2 m of optimal fibre, Schutte's exponential, 400 N."""
-    passive = np.exp(8.0 * (FIBRE_GRID - 1.0)) / np.exp(4.0)
-    return PassiveFibre("lifter", 400.0, 0.2, 0.4, 0.0, 20.0 * STRAIN_GRID, passive)
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +26,7 @@ def pendulum(tmp_path_factory):
     fibre_plugin.load(folder)
     xml = folder / "pendulum.xml"
     xml.write_text(MUSCLE_PENDULUM.replace('lengthrange="0.3 0.9"', 'lengthrange="0.45 0.75"'))
-    out = fibre_plugin.with_fibres(xml, folder / "pendulum_fibre.xml", {"lifter": _fibre()}, {"lifter": 0.2})
+    out = fibre_plugin.with_fibres(xml, folder / "pendulum_fibre.xml", FIBRES, {"lifter": 0.2})
     return mujoco.MjModel.from_xml_path(str(xml)), mujoco.MjModel.from_xml_path(str(out))
 
 
@@ -53,7 +49,7 @@ def test_the_plugin_steps_the_fibre_as_python_does(pendulum):
     free, init = _swing(plain)
     exp = SimpleNamespace(dofs=["swing"], init=init[None], controls=np.zeros((1, 400, 1)),
                           reference=np.zeros((1, 401, 1)))
-    python = fibre_run(exp, plain, {"lifter": _fibre()}, 0, {"lifter": 0.2})[:, 0]
+    python = fibre_run(exp, plain, FIBRES, 0, {"lifter": 0.2})[:, 0]
     assert np.abs(q - free).max() > 0.01  # the fibre pulls
     # as the same fibre stepped in Python: 4.4e-6 rad apart at most, the equilibrium table's linear interpolation
     np.testing.assert_allclose(q, python, atol=1e-5)
@@ -86,7 +82,7 @@ def test_plugin_run_is_fibre_run_inside_mujoco(tmp_path):
     _, init = _swing(plain, steps=0)
     exp = SimpleNamespace(dofs=["swing"], init=init[None], controls=np.zeros((1, 300, 1)),
                           reference=np.zeros((1, 301, 1)))
-    inside = plugin_run(exp, xml, {"lifter": _fibre()}, 0, {"lifter": 0.2})
-    beside = fibre_run(exp, plain, {"lifter": _fibre()}, 0, {"lifter": 0.2})
+    inside = plugin_run(exp, xml, FIBRES, 0, {"lifter": 0.2})
+    beside = fibre_run(exp, plain, FIBRES, 0, {"lifter": 0.2})
     assert inside.shape == beside.shape == (301, 1)
     np.testing.assert_allclose(inside, beside, atol=1e-5)
