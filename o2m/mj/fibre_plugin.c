@@ -3,6 +3,10 @@
 // equilibrium at the tendon's length and never shortens; the force (N) is the tendon's, from its
 // strain. One instance per tendon; the curves come as tables in the instance's config
 // (o2m.mj.fibre_plugin.with_fibres writes them). Built by o2m.mj.fibre_plugin.build.
+// A negative fibre length switches the instance off (the muscle is excited in this run and pulls
+// as the MuJoCo muscle and tendon spring it is). While on, the fibre's pull replaces the tendon's
+// own spring and damper, which it cancels as MuJoCo computes them (mj_passive's polynomial spring
+// with its dead band, linear damping), so a fit that changes them leaves a passive fibre alone.
 #include <stdlib.h>
 #include <string.h>
 #include <math.h>
@@ -36,6 +40,17 @@ static double tendon_force(const Fibre* f, double L, double lf) {
   return strain > 0 ? f->f0 * interp(strain, f->strain_t, f->tendon_t, f->nt) : 0.0;
 }
 
+// The pull (N) of tendon t's own spring and damper, as mj_passive applies them.
+static double spring_force(const mjModel* m, const mjData* d, int t) {
+  double L = d->ten_length[t], lo = m->tendon_lengthspring[2 * t], hi = m->tendon_lengthspring[2 * t + 1];
+  double x = L > hi ? L - hi : (L < lo ? L - lo : 0.0);
+  const mjtNum* p = m->tendon_stiffnesspoly + mjNPOLY * t;
+  double k = m->tendon_stiffness[t], xn = x, F = 0;
+  F += k * x;
+  for (int i = 0; i < mjNPOLY; i++) { xn *= x; F += p[i] * xn; }
+  return F + m->tendon_damping[t] * d->ten_velocity[t];
+}
+
 static int nstate(const mjModel* m, int instance) { return 1; }
 static int init(const mjModel* m, mjData* d, int instance) {
   Fibre* f = (Fibre*)calloc(1, sizeof(Fibre));
@@ -66,12 +81,13 @@ static void reset(const mjModel* m, mjtNum* state, void* data, int instance) {
 static void compute(const mjModel* m, mjData* d, int instance, int bit) {
   Fibre* f = (Fibre*)d->plugin_data[instance];
   mjtNum* lf = d->plugin_state + m->plugin_stateadr[instance];
-  double L = d->ten_length[f->tendon];
+  if (*lf < 0) return;  // off: an excited muscle
+  int t = f->tendon;
+  double L = d->ten_length[t];
   double eq = interp(L, f->len_t, f->eq_t, f->nq);
   if (eq > *lf) *lf = eq;  // the fibre lengthens to equilibrium, never shortens
-  double F = tendon_force(f, L, *lf);
+  double F = tendon_force(f, L, *lf) - spring_force(m, d, t);
   if (F == 0) return;
-  int t = f->tendon;
   int adr = m->ten_J_rowadr[t];  // MuJoCo 4: the tendon Jacobian is sparse, its structure in mjModel
   for (int k = 0; k < m->ten_J_rownnz[t]; k++) d->qfrc_passive[m->ten_J_colind[adr + k]] -= F * d->ten_J[adr + k];
 }

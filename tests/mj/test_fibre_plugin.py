@@ -86,3 +86,28 @@ def test_plugin_run_is_fibre_run_inside_mujoco(tmp_path):
     beside = fibre_run(exp, plain, FIBRES, 0, {"lifter": 0.2})
     assert inside.shape == beside.shape == (301, 1)
     np.testing.assert_allclose(inside, beside, atol=1e-5)
+
+
+def test_an_instance_off_leaves_the_model_and_one_on_replaces_its_tendon_spring(tmp_path):
+    """Off (fibre length -1), the instance changes nothing; on, with a fibre whose tendon stays
+    slack, the model moves as if its tendon had no spring and damper (the plugin cancels them)."""
+    from mujoco import rollout
+
+    fibre_plugin.load(tmp_path)
+    bare = MUSCLE_PENDULUM.replace('lengthrange="0.3 0.9"', 'lengthrange="0.45 0.75"')
+    sprung = bare.replace('<spatial name="lifter">', '<spatial name="lifter" stiffness="300" springlength="0.5" '
+                                                     'damping="2">')
+    for name, text in (("bare.xml", bare), ("sprung.xml", sprung)):
+        (tmp_path / name).write_text(text)
+    slack = {"lifter": pendulum_fibre(slack=5.0, force=400.0)}
+    model = mujoco.MjModel.from_xml_path(str(fibre_plugin.with_fibres(tmp_path / "sprung.xml",
+                                                                      tmp_path / "fibre.xml", slack)))
+    q_bare, state = _swing(mujoco.MjModel.from_xml_path(str(tmp_path / "bare.xml")))
+    q_sprung, _ = _swing(mujoco.MjModel.from_xml_path(str(tmp_path / "sprung.xml")))
+    assert np.abs(q_bare - q_sprung).max() > 0.01  # the spring matters
+    off = fibre_plugin.fibre_state(model, state, {})
+    on = fibre_plugin.fibre_state(model, state, {"lifter": 0.2})
+    assert off[-1] == fibre_plugin.OFF and on[-1] == pytest.approx(0.2)
+    states, _ = rollout.rollout(model, mujoco.MjData(model), np.stack([off, on]), np.zeros((2, 400, 1)))
+    np.testing.assert_allclose(states[0, :, 1], q_sprung[1:], atol=1e-12)
+    np.testing.assert_allclose(states[1, :, 1], q_bare[1:], atol=1e-9)
