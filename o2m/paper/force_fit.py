@@ -194,7 +194,8 @@ def _start(model: mujoco.MjModel, aid: int, static: tuple[np.ndarray, ...] | Non
 
 def _bounds(lr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lo, hi = _LOWER.copy(), _UPPER.copy()
-    lo[7], hi[7] = lr[0] - EDGE_MARGIN, lr[1] + EDGE_MARGIN
+    # the edge is the upper end of the dead band [0, edge], which MuJoCo's compiler refuses below 0
+    lo[7], hi[7] = max(0.0, lr[0] - EDGE_MARGIN), lr[1] + EDGE_MARGIN
     return lo, hi
 
 

@@ -11,6 +11,7 @@ from o2m.paper.force_fit import (
     ForceFit,
     ForceSamples,
     MuscleForceFit,
+    _bounds,
     _force,
     _start,
     fit_forces,
@@ -75,6 +76,18 @@ def test_written_mjcf_matches_the_applied_model(tmp_path):
     for field in ("actuator_gainprm", "actuator_biasprm", "actuator_dynprm", "tendon_stiffness",
                   "tendon_stiffnesspoly", "tendon_lengthspring", "tendon_damping"):
         np.testing.assert_allclose(getattr(written, field), getattr(applied, field), rtol=1e-12, err_msg=field)
+
+
+def test_the_spring_edge_of_a_short_muscle_stays_where_mujoco_compiles_it(tmp_path):
+    """A muscle shorter than the edge's margin (PQ on MoBL-ARMS): the fit may not put the dead
+    band's upper end below 0, which MuJoCo's compiler refuses ("invalid springlength")."""
+    lo, hi = _bounds(np.array([0.03, 0.06]))
+    assert lo[7] == 0.0 and hi[7] > 0.06
+    src = tmp_path / "in.xml"
+    src.write_text(SLIDER)
+    fit = _known()
+    fit.edge = lo[7]
+    mujoco.MjModel.from_xml_path(str(ForceFit({"m": fit}).write_mjcf(src, tmp_path / "out.xml")))
 
 
 def _samples(truth: MuscleForceFit, n: int, seed: int) -> ForceSamples:
