@@ -281,20 +281,24 @@ NOTEBOOKS["04_parameter_fitting.ipynb"] = [
 
 Geometry converts exactly or nearly so; dynamics do not. MuJoCo's muscle has a rigid tendon and
 fixed curve shapes, while MoBL-ARMS' Schutte muscles have an elastic tendon and damped fibres.
-We fit the converted model in two stages, both on the training sets only:
+We fit the converted model in three stages, both on the training sets only:
 
 1. **Muscle forces** (o2m's addition to the paper). The dataset records OpenSim's tendon force of
    every muscle every 2 ms. At each of those states, MuJoCo's muscle should pull as hard. We fit,
    muscle by muscle, MuJoCo's force-length and force-velocity parameters and strength, and move
    the passive force into a polynomial spring on the muscle's tendon (plus tendon damping), by
    least squares. This is cheap (no simulation) and removes most of the error.
-2. **The paper's 160 parameters** with CMA-ES: per free DoF its damping and the softness of its
+2. **Passive fibres** (o2m's addition). A Schutte muscle that is never excited in a set keeps its
+   fibre as long as it has ever been there: after a stretch its tendon goes slack, where MuJoCo's
+   memoryless passive force keeps pulling. Each set's never-excited elbow and forearm muscles pull
+   as OpenSim's fibre does, inside MuJoCo (the `o2m.fibre` plugin, compiled at first use).
+3. **The paper's 160 parameters** with CMA-ES: per free DoF its damping and the softness of its
    limit, per muscle tendon its damping and spring, per muscle a strength scale, so that the
    joint trajectories match OpenSim's.
 
 Beside it we run **the paper's pipeline** as the paper did: the same CMA-ES fit straight on the
 converted model (no muscle force fit), keeping the best candidate on the training sets. o2m's
-additions, all absent from that column: the muscle force fit, early stopping on held-out
+additions, all absent from that column: the muscle force fit, the passive fibres, early stopping on held-out
 validation sets, and (notebook 5) the corrections' force-matching start and their search by
 Levenberg-Marquardt instead of CMA-ES. Shared by both columns
 and different from the paper: each parameter is searched within one decade of its converted value
@@ -350,15 +354,21 @@ for label, m in (("converted", exp.model), ("muscle forces fitted", fitted_force
     plt.plot(t, f, label=label)
 plt.xlabel("time (s)"); plt.ylabel("force (N)"); plt.title(f"{name}, test set {i}"); plt.legend(); plt.show()"""),
     md("""
-## Stage 2: the paper's CMA-ES fit
+## Stages 2 and 3: passive fibres, then the paper's CMA-ES fit
 
 The objective is the squared joint error (rad²) averaged over time and summed over DoFs and
 training sets, plus a small penalty on moving parameters far (in log10 units) from their start.
 """),
     code("""
+from o2m.paper import passive_fibre_stage
 from o2m.paper.fitting import BOUNDS, PENALTY, TrajectoryObjective, fit_cma, load_fit, parameter_space
 
-space = parameter_space(fitted_forces, exp.dofs, exp.muscles)
+# stage 2: the force-fitted model with each set's never-excited elbow and forearm muscles as passive
+# fibres; fibre_exp lays the sets out for it (their initial states switch the fibres on or off)
+forces_xml = forces.write_mjcf(exp.xml, exp.xml.with_name(exp.xml.stem + "_forces.xml"))
+fibre_exp = passive_fibre_stage(exp, forces_xml)
+print(fibre_exp.model.nplugin, "muscles can pull as passive fibres")
+space = parameter_space(fibre_exp.model, exp.dofs, exp.muscles)
 print(len(space), "parameters; penalty weight", PENALTY)
 for kind, (lo, hi) in BOUNDS.items():
     count = sum(n.startswith(kind + ":") for n in space.names)
@@ -366,7 +376,7 @@ for kind, (lo, hi) in BOUNDS.items():
         print(f"{kind:18s} {count:3d} parameters, bounds {lo:g} .. {hi:g}")
 if QUICK:
     train = exp.dataset.train[:4]
-    objective = TrajectoryObjective(fitted_forces, space, exp.init[train], exp.controls[train],
+    objective = TrajectoryObjective(fibre_exp.model, space, fibre_exp.init[train], exp.controls[train],
                                     exp.reference[train], exp.dofs)
     fit = fit_cma(objective, seed=0, generations=3, popsize=6, progress=False)
 else:
@@ -404,9 +414,11 @@ print(f"training cost {paper_fit.cost0:.4g} -> {paper_fit.cost:.4g}; validation 
 from o2m.paper import joint_mae
 
 test = exp.dataset.test[:3] if QUICK else exp.dataset.test
-stages = {"converted": exp.model, "paper: CMA-ES": paper_space.apply(exp.model, paper_fit.x),
-          "o2m: forces": fitted_forces, "o2m: + CMA-ES": space.apply(fitted_forces, fit.x)}
-errors = {k: np.nanmean(joint_mae(exp, m, test)[0], axis=0) for k, m in stages.items()}
+# each stage's model with the sets laid out for it
+stages = {"converted": (exp, exp.model), "paper: CMA-ES": (exp, paper_space.apply(exp.model, paper_fit.x)),
+          "o2m: forces": (exp, fitted_forces), "o2m: + fibres": (fibre_exp, fibre_exp.model),
+          "o2m: + CMA-ES": (fibre_exp, space.apply(fibre_exp.model, fit.x))}
+errors = {k: np.nanmean(joint_mae(e, m, test)[0], axis=0) for k, (e, m) in stages.items()}
 print(f"{'DoF':15s}" + "".join(f"{k:>15s}" for k in errors) + "   (mean absolute error, rad)")
 for j, d in enumerate(exp.dofs):
     print(f"{d:15s}" + "".join(f"{e[j]:15.4f}" for e in errors.values()))
@@ -425,9 +437,10 @@ spline coefficients block by block in time, in several passes over the blocks (e
 a block after the later ones have moved), and keeps a block only if it lowers the whole
 trajectory's cost. The paper searched each block with CMA-ES; o2m's pipeline uses
 Levenberg-Marquardt (the block's cost is a sum of squares, and its short window is nearly linear in
-the corrections), which leaves a smaller error with smaller corrections. It starts from the better of no correction and the correction that,
-along OpenSim's own trajectory, would make every MuJoCo muscle pull with the tendon force OpenSim
-recorded (o2m's addition: the dataset keeps those forces).
+the corrections), which leaves a smaller error with smaller corrections. It starts from the
+better of no correction and the correction that, along OpenSim's own trajectory, would make every
+MuJoCo muscle pull with the tendon force OpenSim recorded (o2m's addition: the dataset keeps
+those forces).
 """),
     code(PARAMETERS),
     code('''
@@ -436,13 +449,15 @@ from o2m.paper.corrections import PENALTY, fit_corrections
 from o2m.paper.fitting import load_fit
 from o2m.paper.force_fit import ForceFit
 from o2m import paper
-from o2m.paper import correction_start, fitted_model, load_experiment
+from o2m.paper import correction_start, fitted_experiment, load_experiment
 
 budget = paper.QUICK if QUICK else paper.FULL  # the main command's budgets
 exp = load_experiment(DATA, OUT / "paper")
 results = DATA / "results"
 if (results / "parameters.json").exists() and (results / "muscle_forces.json").exists():
-    model = fitted_model(exp, ForceFit.load(results / "muscle_forces.json"), load_fit(results / "parameters.json"))
+    # o2m's fitted model, with each set's never-excited elbow and forearm muscles as OpenSim's passive fibres
+    exp = fitted_experiment(exp, ForceFit.load(results / "muscle_forces.json"), load_fit(results / "parameters.json"))
+    model = exp.model
 else:  # no stored fit (a fresh dataset): correct the converted model
     model = exp.model
 i = exp.dataset.test[0]

@@ -9,9 +9,10 @@ from o2m.paper.pipeline import (
     Settings,
     correction_start,
     fit_muscle_forces,
-    fitted_model,
+    fitted_experiment,
     joint_mae,
     load_experiment,
+    passive_fibre_stage,
     run_paper,
 )
 from o2m.paper.reproduce import PaperRun, format_summary, reproduce
@@ -25,12 +26,13 @@ __all__ = [
     "Settings",
     "correction_start",
     "fit_muscle_forces",
-    "fitted_model",
+    "fitted_experiment",
     "format_summary",
     "joint_mae",
     "load_dataset",
     "load_experiment",
     "make_dataset",
+    "passive_fibre_stage",
     "reproduce",
     "run_paper",
 ]

@@ -39,10 +39,11 @@ from o2m.mj.posing import joint_equality_plan, joint_qpos_address, pose_mujoco
 from o2m.mj.simulate import controls_from_forces, force_driven, initial_state, rollout
 from o2m.mj.tendons import mujoco_moment_arms
 from o2m.osim.pair import ModelPair
+from o2m.paper.passive_stage import crossing
 from o2m.paper.pipeline import DATA_DIR, Experiment, load_experiment
 
 __all__ = ["EXTENDED", "ArmFunction", "ArmsAlong", "Feedback", "arm_corrected_run", "arm_slopes", "arms_along",
-           "crossing", "exact_carrier_run", "generalized_force_run", "generalized_forces", "mujoco_arms",
+           "exact_carrier_run", "generalized_force_run", "generalized_forces", "mujoco_arms",
            "muscle_feedback_run", "opensim_arms", "opensim_pair", "replay_instability", "tendon_force_run"]
 
 EXTENDED = 0.1
@@ -187,22 +188,6 @@ def muscle_feedback_run(exp: Experiment, model: mujoco.MjModel, muscle_model: mu
             data.ctrl[ids] += live.actuator_force[ids] - recorded.actuator_force[ids]
         out.append(_applied_run(exp, model, i, ctrl, applied, feedback))
     return np.array(out)
-
-
-def crossing(exp: Experiment, model: mujoco.MjModel, dof: str, i: int = 0) -> list[str]:
-    """The muscles whose length changes with ``dof`` (moment arm above 1 mm) at set ``i``'s initial pose."""
-    plan = joint_equality_plan(model)
-    data = mujoco.MjData(model)
-    pose = {n: v for n, v in zip(exp.dataset.coordinate_names, exp.dataset.coordinates[i, 0], strict=True)
-            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) >= 0}
-    lengths = []
-    for dq in (-1e-4, 1e-4):
-        pose_mujoco(model, data, {**pose, dof: pose[dof] + dq}, plan=plan)
-        mujoco.mj_tendon(model, data)
-        mujoco.mj_transmission(model, data)
-        lengths.append(data.actuator_length.copy())
-    arm = (lengths[1] - lengths[0]) / 2e-4
-    return [m for m in exp.muscles if abs(arm[model.actuator(m).id]) > 1e-3]
 
 
 def exact_carrier_run(exp: Experiment, model: mujoco.MjModel, sets: list[int]) -> np.ndarray:

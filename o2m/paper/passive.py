@@ -29,26 +29,11 @@ from o2m.errors import O2MError
 from o2m.mj.fibre_plugin import load as load_plugin
 from o2m.mj.posing import joint_equality_plan
 from o2m.osim.fibres import PassiveFibre, passive_fibres
-from o2m.osim.simulate import read_initial_state
 from o2m.paper.floor import recorded_state
+from o2m.paper.passive_stage import fibre_muscles, initial_fibre_lengths, passive_muscles
 from o2m.paper.pipeline import DATA_DIR, Experiment, joint_mae, load_experiment, load_fresh_experiment
 
-__all__ = ["figure", "fibre_forces_along", "fibre_run", "fitted_passive_force", "initial_fibre_lengths",
-           "passive_muscles", "plugin_run"]
-
-
-def passive_muscles(exp: Experiment, i: int, among: list[str] | None = None) -> list[str]:
-    """Muscles (of ``among``, default all) never excited in set ``i``."""
-    ds = exp.dataset
-    cols = [list(ds.activations.muscles).index(m) for m in exp.muscles]
-    exc = ds.activations.values[i][:, cols]
-    return [m for j, m in enumerate(exp.muscles) if np.all(exc[:, j] == 0) and (among is None or m in among)]
-
-
-def initial_fibre_lengths(exp: Experiment) -> dict[str, float]:
-    """Fibre lengths (m) the dataset's OpenSim runs started from (its initial state file)."""
-    state = read_initial_state(models.fetch(exp.dataset.meta["initial_state"]))
-    return {m: float(state[f"{m}.fiber_length"]) for m in exp.muscles if f"{m}.fiber_length" in state}
+__all__ = ["figure", "fibre_forces_along", "fibre_run", "fitted_passive_force", "plugin_run"]
 
 
 def _along(model: mujoco.MjModel, exp: Experiment, i: int):
@@ -204,7 +189,6 @@ def main() -> None:
     ap.add_argument("--out", default="out/paper", help="folder of the converted model (converted if missing)")
     ap.add_argument("--figure", help="only draw BIClong's force over fresh set 4 into this PNG")
     a = ap.parse_args()
-    from o2m.paper.floor import crossing
     from o2m.paper.force_fit import ForceFit
 
     exp = load_experiment(a.data, a.out)
@@ -214,8 +198,7 @@ def main() -> None:
         fresh = load_fresh_experiment(Path(a.data), a.out)
         figure(fresh[0], model, 4, "BIClong", a.figure, where="fresh set")
         return
-    among = sorted(set(crossing(exp, model, "elbow_flexion", exp.dataset.test[0]))
-                   | set(crossing(exp, model, "pro_sup", exp.dataset.test[0])))
+    among = fibre_muscles(exp, model)
     print("fibres for the passive ones among:", " ".join(among))
     fitted_xml = forces.write_mjcf(exp.xml, Path(exp.xml).with_name(Path(exp.xml).stem + "_forces.xml"))
     try:

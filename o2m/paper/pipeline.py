@@ -6,10 +6,12 @@ initial states, controls and OpenSim joint trajectories of every successful set.
 :func:`run_paper` then runs two pipelines on the training sets. The paper's: the paper's 160
 parameters fitted to the joint trajectories with CMA-ES (:mod:`o2m.fitting`), the best training
 candidate kept. o2m's: first each muscle's force to OpenSim's tendon forces along the training
-trajectories (:mod:`o2m.force_fit`, which the paper did not do), then the same CMA-ES fit,
-early-stopped on the validation sets. It fits corrective controls on the test and fresh sets
-(:mod:`o2m.corrections`) for both, measures every stage on the training, validation, test and
-fresh sets (:data:`FRESH_DIR`) and writes everything the figures need to ``<data>/results/``:
+trajectories (:mod:`o2m.force_fit`, which the paper did not do), then each set's never-excited
+elbow and forearm muscles as OpenSim's passive fibres (:mod:`o2m.paper.passive_stage`, the
+``o2m.fibre`` plugin), then the same CMA-ES fit, early-stopped on the validation sets. It fits
+corrective controls on the test and fresh sets (:mod:`o2m.corrections`) for both, measures every
+stage on the training, validation, test and fresh sets (:data:`FRESH_DIR`) and writes everything
+the figures need to ``<data>/results/``:
 
 ``muscle_forces.json`` the muscle force fit (:meth:`o2m.force_fit.ForceFit.save`)
 ``parameters.json``   the CMA-ES fit (:func:`o2m.fitting.save_fit`)
@@ -20,11 +22,13 @@ fresh sets (:data:`FRESH_DIR`) and writes everything the figures need to ``<data
                       reused while the corrected model, sets and budget are the same;
                       ``corrections_fresh_*.npz`` the same on the fresh sets
 ``results.npz``       per test set and DoF, mean absolute joint error (rad) of the converted,
-                      force-fitted, fitted and corrected model; per test set and muscle, mean absolute
+                      force-fitted, passive-fibre, fitted and corrected model; per test set and muscle, mean absolute
                       correction; joint trajectories of the first test sets for the overlay
 ``summary.json``      the headline numbers and the settings (quick or full)
 
-and the fitted model itself as MJCF beside the converted one (``<model_dir>/<stem>_fitted.xml``).
+and the fitted model itself as MJCF beside the converted one: ``<model_dir>/<stem>_fitted.xml``
+without the fibres (any MuJoCo opens it) and ``<stem>_fitted_fibres.xml`` with their plugin
+instances, all off until a run's state switches them on (:func:`fitted_experiment`).
 """
 
 from __future__ import annotations
@@ -41,6 +45,8 @@ import numpy as np
 
 from o2m import models
 from o2m.convert import ConvertOptions, convert, convert_once
+from o2m.errors import O2MError
+from o2m.mj.fibre_plugin import fibre_instances
 from o2m.mj.simulate import controls_from_excitations, initial_state, muscle_activations, rollout
 from o2m.paper.dataset import Dataset, load_dataset
 from o2m.paper.fitting import (
@@ -185,28 +191,33 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
                                progress=progress)
     force_model = forces.apply(exp.model)
     force_seconds = time.perf_counter() - t_force
+    forces_xml = forces.write_mjcf(exp.xml, exp.xml.with_name(exp.xml.stem + "_forces.xml"))
+    fibre_exp = passive_fibre_stage(exp, forces_xml)
     held = [i for i in exp.dataset.validation if exp.dataset.ok[i]]
     paper_settings = replace(settings, generations=settings.paper_generations or settings.generations,
                              sigma0=settings.paper_sigma0)
     paper_space, paper_fit = fit_parameters(exp, exp.model, train, held, out / "parameters_paper.json",
                                             settings=paper_settings, refit=refit, progress=progress,
                                             executor=executor, early_stopping=False)
-    space, fit = fit_parameters(exp, force_model, train, held, out / "parameters.json", settings=settings,
+    space, fit = fit_parameters(fibre_exp, fibre_exp.model, train, held, out / "parameters.json", settings=settings,
                                 refit=refit, progress=progress, executor=executor, early_stopping=True)
-    fitted = space.apply(force_model, fit.x)
+    fitted = space.apply(fibre_exp.model, fit.x)
     fitted_xml = exp.xml.with_name(exp.xml.stem + "_fitted.xml")  # beside the converted model: its meshes
-    forces.write_mjcf(exp.xml, fitted_xml)
+    forces.write_mjcf(exp.xml, fitted_xml)  # without the plugin, which any MuJoCo opens
     space.write_mjcf(force_model, fit.x, fitted_xml, fitted_xml)
+    space.write_mjcf(fibre_exp.model, fit.x, fibre_exp.xml, fitted_xml.with_name(fitted_xml.stem + "_fibres.xml"))
 
     paper_fitted = paper_space.apply(exp.model, paper_fit.x)
-    stage_models = {"converted": exp.model, "force_fitted": force_model, "fitted": fitted,
-                    "paper_fitted": paper_fitted}
+    # each stage's model with the experiment laid out for it (o2m's fibres carry their initial states)
+    stage_runs = {"converted": (exp, exp.model), "force_fitted": (exp, force_model),
+                  "fibres": (fibre_exp, fibre_exp.model), "fitted": (fibre_exp, fitted),
+                  "paper_fitted": (exp, paper_fitted)}
     errors, trajectories = {}, {}
-    for name, m in stage_models.items():
-        errors[name], trajectories[name] = joint_mae(exp, m, test)
+    for name, (e, m) in stage_runs.items():
+        errors[name], trajectories[name] = joint_mae(e, m, test)
     t1 = time.perf_counter()
     k = min(settings.overlay_sets, len(test))
-    corrected = correct_sets(exp, fitted, test, settings=settings, force_start=True, progress=progress,
+    corrected = correct_sets(fibre_exp, fitted, test, settings=settings, force_start=True, progress=progress,
                              cache=out / "corrections.npz", refit=refit, keep=k, method=settings.correction_method)
     corr_seconds = time.perf_counter() - t1
     paper_test = test[: settings.paper_correction_sets] if settings.paper_correction_sets else test
@@ -218,19 +229,22 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     errors["paper_corrected"] = np.full_like(corrected[0], np.nan)
     errors["paper_corrected"][: len(paper_test)] = paper_corrected[0]
     fresh_exp = load_fresh_experiment(Path(data_dir), model_dir, options=options)
-    fresh = fresh_set_errors(*fresh_exp, stage_models) if fresh_exp else {}
-    fresh_sizes = {}
+    fresh, fresh_sizes = {}, {}
+    if fresh_exp:
+        fresh_fibres = passive_fibre_stage(fresh_exp[0], forces_xml)
+        fresh = {name: joint_mae(fresh_fibres if e is fibre_exp else fresh_exp[0], m, fresh_exp[1])[0]
+                 for name, (e, m) in stage_runs.items()}
     if fresh_exp and settings.fresh_corrections:
-        columns = {"corrected": (fitted, True, settings.correction_method),
-                   "paper_corrected": (paper_fitted, False, PAPER_CORRECTION_METHOD)}
-        for name, (err, size) in correct_fresh_sets(*fresh_exp, columns, out, settings=settings, refit=refit,
+        columns = {"corrected": (fresh_fibres, fitted, True, settings.correction_method),
+                   "paper_corrected": (fresh_exp[0], paper_fitted, False, PAPER_CORRECTION_METHOD)}
+        for name, (err, size) in correct_fresh_sets(fresh_exp[1], columns, out, settings=settings, refit=refit,
                                                     progress=progress).items():
             fresh[name], fresh_sizes[name] = err, float(np.mean(size))
     # every stage's error off the test sets too: does a fit generalise, or only fit its training sets?
-    split_errors = {split: {name: float(np.nanmean(joint_mae(exp, m, sets)[0])) for name, m in stage_models.items()}
+    split_errors = {split: {name: float(np.nanmean(joint_mae(e, m, sets)[0])) for name, (e, m) in stage_runs.items()}
                     for split, sets in (("train", train), ("validation", held)) if sets}
-    split_errors["test"] = {name: float(np.nanmean(errors[name])) for name in stage_models}
-    split_errors.update({"fresh": {k: float(np.nanmean(fresh[k])) for k in stage_models}} if fresh else {})
+    split_errors["test"] = {name: float(np.nanmean(errors[name])) for name in stage_runs}
+    split_errors.update({"fresh": {k: float(np.nanmean(fresh[k])) for k in stage_runs if k in fresh}} if fresh else {})
     np.savez_compressed(
         out / "results.npz", dofs=np.array(exp.dofs), muscles=np.array(exp.muscles), test=np.array(test),
         times=exp.dataset.times, err_converted=errors["converted"], err_forces=errors["force_fitted"],
@@ -242,6 +256,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         overlay_forces=trajectories["force_fitted"][:k], overlay_fitted=trajectories["fitted"][:k],
         overlay_corrected=corrected[2], overlay_paper_fitted=trajectories["paper_fitted"][:k],
         overlay_paper_corrected=paper_corrected[2],
+        err_fibres=errors["fibres"], overlay_fibres=trajectories["fibres"][:k],
         **{f"fresh_err_{name}": e for name, e in fresh.items()})
     summary = {
         "settings": settings.__dict__, "n_train": len(train), "n_test": len(test),
@@ -263,6 +278,8 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
                        "mean_abs_correction": fresh_sizes},
         "muscle_forces": forces.summary(),
         "fitted_xml": str(fitted_xml),
+        "passive_fibres": {"xml": str(fitted_xml.with_name(fitted_xml.stem + "_fibres.xml")),
+                           "muscles": sorted(fibre_instances(fibre_exp.model).values())},
         "fit": fit_summary(fit),
         "paper_fit": fit_summary(paper_fit),
         # the fits' own times (stored with them); the others only when computed here, so a run
@@ -272,6 +289,19 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def passive_fibre_stage(exp: Experiment, forces_xml: Path) -> Experiment:
+    """o2m's passive-fibre stage on ``exp`` (:func:`o2m.paper.passive_stage.fibre_experiment`): the
+    force-fitted model ``forces_xml`` with each set's never-excited elbow and forearm muscles pulling
+    as OpenSim's passive fibres (the plugin built beside it). Raises :class:`O2MError` where the
+    plugin cannot be built (no C compiler)."""
+    from o2m.paper.passive_stage import fibre_experiment
+
+    try:
+        return fibre_experiment(exp, forces_xml, forces_xml.parent)
+    except O2MError as err:
+        raise O2MError(f"o2m's pipeline runs its passive fibres in the o2m.fibre MuJoCo plugin: {err}") from err
 
 
 def fit_summary(fit: FitResult) -> dict:
@@ -355,21 +385,15 @@ def load_fresh_experiment(data_dir: Path, model_dir: str | os.PathLike[str], *,
     return exp, [int(i) for i in np.flatnonzero(exp.dataset.ok)]
 
 
-def fresh_set_errors(exp: Experiment, sets: list[int],
-                     stage_models: dict[str, mujoco.MjModel]) -> dict[str, np.ndarray]:
-    """Joint error (n_sets, n_dofs) rad of each model on the fresh ``sets`` (:func:`load_fresh_experiment`)."""
-    return {name: joint_mae(exp, m, sets)[0] for name, m in stage_models.items()}
-
-
-def correct_fresh_sets(exp: Experiment, sets: list[int], columns: dict[str, tuple[mujoco.MjModel, bool, str]],
+def correct_fresh_sets(sets: list[int], columns: dict[str, tuple[Experiment, mujoco.MjModel, bool, str]],
                        out: Path, *, settings: Settings = FULL, refit: bool = False, progress: bool = True,
                        ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Corrective controls on the fresh ``sets`` (:func:`load_fresh_experiment`), as :func:`correct_sets`
-    on the test sets, per column ``name: (model, force_start, method)``, cached in
-    ``out/corrections_fresh_<name>.npz``. Returns per column the joint error (n_sets, n_dofs) rad
-    and the mean absolute correction per set and muscle."""
+    on the test sets, per column ``name: (experiment, model, force_start, method)`` (the experiment
+    laid out for that model), cached in ``out/corrections_fresh_<name>.npz``. Returns per column
+    the joint error (n_sets, n_dofs) rad and the mean absolute correction per set and muscle."""
     result = {}
-    for name, (model, force_start, method) in columns.items():
+    for name, (exp, model, force_start, method) in columns.items():
         err, size, _ = correct_sets(exp, model, sets, settings=settings, force_start=force_start, progress=progress,
                                     cache=out / f"corrections_fresh_{name}.npz", refit=refit, keep=0, method=method)
         result[name] = err, size
@@ -387,8 +411,9 @@ def fit_parameters(exp: Experiment, model: mujoco.MjModel, train: list[int], hel
     space = parameter_space(model, exp.dofs, exp.muscles)
     if fit_file.exists() and not refit:
         fit = load_fit(fit_file)
-        if fit.names != space.names:
-            raise ValueError(f"{fit_file} has other parameters than this model; rerun with refit=True")
+        if fit.names != space.names or fit.settings.get("xml", exp.xml.name) != exp.xml.name:
+            raise ValueError(f"{fit_file} was fitted on another model ({fit.settings.get('xml')}, not {exp.xml.name}) "
+                             "or has other parameters; rerun with refit=True")
         return space, fit
     objective = TrajectoryObjective(model, space, exp.init[train], exp.controls[train], exp.reference[train],
                                     exp.dofs, executor=executor)
@@ -453,10 +478,11 @@ def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[
     return forces
 
 
-def fitted_model(exp: Experiment, forces: ForceFit, fit: FitResult) -> mujoco.MjModel:
-    """The converted model with the muscle force fit and the CMA-ES parameters written in."""
-    force_model = forces.apply(exp.model)
-    space = parameter_space(force_model, exp.dofs, exp.muscles)
+def fitted_experiment(exp: Experiment, forces: ForceFit, fit: FitResult) -> Experiment:
+    """``exp`` laid out for o2m's fitted model, which is its ``model``: the converted model with the
+    muscle force fit, the passive fibres (:func:`passive_fibre_stage`) and the CMA-ES parameters."""
+    fibre_exp = passive_fibre_stage(exp, forces.write_mjcf(exp.xml, exp.xml.with_name(exp.xml.stem + "_forces.xml")))
+    space = parameter_space(fibre_exp.model, exp.dofs, exp.muscles)
     if fit.names != space.names:
         raise ValueError("the CMA-ES fit has other parameters than this model; rerun `python -m o2m paper --refit`")
-    return space.apply(force_model, fit.x)
+    return replace(fibre_exp, model=space.apply(fibre_exp.model, fit.x))

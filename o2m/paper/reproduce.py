@@ -21,7 +21,7 @@ __all__ = ["PaperRun", "STAGES", "format_summary", "reproduce"]
 
 #: The stages of both pipelines, as the summary names them, with their column headings.
 STAGES = {"converted": "converted", "paper_fitted": "paper CMA", "paper_corrected": "paper corr",
-          "force_fitted": "o2m forces", "fitted": "o2m CMA", "corrected": "o2m corr"}
+          "force_fitted": "o2m forces", "fibres": "o2m fibres", "fitted": "o2m CMA", "corrected": "o2m corr"}
 
 
 @dataclass
@@ -130,10 +130,11 @@ def format_summary(run: PaperRun) -> str:
     lines.append(
         f"Mean absolute joint error on {s['n_test']} test sets (rad): converted {e['converted']:.4f}; "
         f"the paper's pipeline: CMA-ES fitted {e['paper_fitted']:.4f}, with corrections {e['paper_corrected']:.4f}; "
-        f"o2m's: muscle forces fitted {e['force_fitted']:.4f}, CMA-ES fitted {e['fitted']:.4f}, "
+        f"o2m's: muscle forces fitted {e['force_fitted']:.4f}, passive fibres {e['fibres']:.4f}, "
+        f"CMA-ES fitted {e['fitted']:.4f}, "
         f"with corrections {e['corrected']:.4f}"
     )
-    lines += _stage_table(s["per_joint_error_rad"], STAGES)
+    lines += _stage_table(s["per_joint_error_rad"], {k: v for k, v in STAGES.items() if k in e})
     if s.get("paper_corrected_sets", s["n_test"]) < s["n_test"]:
         lines.append(f"  (paper corr: on the first {s['paper_corrected_sets']} test sets only, where o2m's "
                      f"corrections reach {s['corrected_on_paper_sets']:.4f} rad with mean size "
@@ -147,7 +148,7 @@ def format_summary(run: PaperRun) -> str:
     lines.append("Mean over DoFs and sets, per split (rad):")
     lines.append(f"  {'split':15s}" + "".join(f"{STAGES[k]:>12s}" for k in uncorrected))
     for split, v in s.get("split_error_rad", {}).items():
-        lines.append(f"  {split:15s}" + "".join(f"{v[k]:12.4f}" for k in uncorrected))
+        lines.append(f"  {split:15s}" + "".join(f"{v[k]:12.4f}" if k in v else f"{'':12s}" for k in uncorrected))
     mf = s["muscle_forces"]
     lines.append(
         f"Muscle force fit: RMS error {mf['rms_held_out_start']:.2f} -> {mf['rms_held_out']:.2f} % of max isometric "
@@ -168,6 +169,9 @@ def format_summary(run: PaperRun) -> str:
             f"generations, {f['evaluations']} candidates, {f['wall_time_s']:.0f} s"
         )
     lines.append(f"Fitted model: {s['fitted_xml']}")
+    if s.get("passive_fibres"):
+        pf = s["passive_fibres"]
+        lines.append(f"  with its passive fibres ({len(pf['muscles'])} muscles, the o2m.fibre plugin): {pf['xml']}")
     lines.append(
         f"Speed: OpenSim {sp['opensim_median_s']:.2f} s, MuJoCo {sp['mujoco_median_s']:.4f} s per 1-s "
         f"simulation: {sp['ratio']:.0f}x; batched rollouts {sp['rollout_per_s']:.0f} simulations/s"

@@ -12,13 +12,13 @@ from o2m.paper.floor import (
     arm_corrected_run,
     arm_slopes,
     arms_along,
-    crossing,
     generalized_force_run,
     mujoco_arms,
     muscle_feedback_run,
     replay_instability,
     tendon_force_run,
 )
+from o2m.paper.passive_stage import crossing
 from tests.helpers import MUSCLE_PENDULUM
 
 

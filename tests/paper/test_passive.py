@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 
-from o2m.paper.passive import fibre_run, passive_muscles
+from o2m.paper.passive import fibre_run
 from tests.helpers import MUSCLE_PENDULUM, pendulum_fibre
 
 
@@ -46,14 +46,6 @@ def test_a_taut_fibre_pulls_and_the_ratchet_is_not_the_equilibrium(tmp_path):
     memoryless = fibre_run(exp, model, {"lifter": fibre}, 0, {"lifter": 0.2}, ratchet=False)
     assert np.abs(ratchet - free).max() > 0.01
     assert np.abs(ratchet - memoryless).max() > 1e-3
-
-
-def test_passive_muscles_are_those_never_excited():
-    acts = SimpleNamespace(muscles=["a", "b", "c"], values=np.zeros((1, 5, 3)))
-    acts.values[0, 2, 1] = 0.3
-    exp = SimpleNamespace(dataset=SimpleNamespace(activations=acts), muscles=["c", "b", "a"])
-    assert passive_muscles(exp, 0) == ["c", "a"]
-    assert passive_muscles(exp, 0, among=["a"]) == ["a"]
 
 
 def test_along_a_swing_the_ratchet_never_pulls_harder_than_the_equilibrium(tmp_path):
