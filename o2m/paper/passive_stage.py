@@ -2,11 +2,11 @@
 
 A Schutte1993 muscle that is never excited in a set keeps its fibre as long as it has ever been
 there (:mod:`o2m.osim.fibres`, measured in :mod:`o2m.paper.passive`), which a MuJoCo muscle's
-memoryless passive force cannot do. :func:`fibre_experiment` writes the fitted model with an
-``o2m.fibre`` plugin instance (:mod:`o2m.mj.fibre_plugin`) on each muscle that crosses the elbow or
-pro_sup, and lays out each set's initial state with the instances of that set's never-excited
-muscles on, at the fibre lengths OpenSim started from, and the others off. One model then runs
-every set, through ``mujoco.rollout`` like any other stage.
+memoryless passive force cannot do. :func:`fibre_experiment` writes a model (in the pipeline, the
+force-fitted one, before CMA-ES) with an ``o2m.fibre`` plugin instance (:mod:`o2m.mj.fibre_plugin`)
+on each muscle that crosses the elbow or pro_sup, and lays out each set's initial state with the
+instances of that set's never-excited muscles on, at the fibre lengths OpenSim started from, and
+the others off. One model then runs every set, through ``mujoco.rollout`` like any other stage.
 """
 
 from __future__ import annotations
@@ -75,9 +75,9 @@ def fibre_muscles(exp: Experiment, model: mujoco.MjModel, dofs: Sequence[str] = 
 
 def fibre_experiment(exp: Experiment, xml: str | Path, plugin_folder: str | Path,
                      muscles: Sequence[str] | None = None) -> Experiment:
-    """``exp`` for the model of ``xml`` (o2m's fitted model) with OpenSim's passive fibres on
-    ``muscles`` (default :func:`fibre_muscles`), each set starting from OpenSim's initial fibre
-    lengths: :func:`with_passive_fibres`. Needs a C compiler for the plugin (built in
+    """``exp`` for the model of ``xml`` (in the pipeline, the force-fitted one) with OpenSim's
+    passive fibres on ``muscles`` (default :func:`fibre_muscles`), each set starting from
+    OpenSim's initial fibre lengths: :func:`with_passive_fibres`. Needs a C compiler for the plugin (built in
     ``plugin_folder``; :class:`o2m.errors.O2MError` without one)."""
     load(plugin_folder)
     muscles = list(muscles) if muscles is not None else fibre_muscles(exp, mujoco.MjModel.from_xml_path(str(xml)))
