@@ -428,13 +428,17 @@ class FitResult:
         return {n: float(10.0 ** v) for n, v in zip(self.names, self.x, strict=False)}
 
 
-def checkpoint_matches(path: str | os.PathLike[str], space: ParameterSpace, seed: int) -> bool:
+def checkpoint_matches(path: str | os.PathLike[str], space: ParameterSpace, seed: int,
+                       model: str | None = None) -> bool:
     """Whether the :func:`fit_cma` checkpoint at ``path`` is of a fit over ``space`` (its
-    parameters and start) with ``seed``, so that it can be resumed."""
+    parameters and start) with ``seed`` of the model file ``model`` (``settings["xml"]``), so that
+    it can be resumed. Two models can share parameters and start and differ elsewhere (o2m's
+    model with and without its passive fibres)."""
     with open(path, "rb") as f:
         state = pickle.load(f)
     same_start = "x0" in state and np.array_equal(state["x0"], space.x0)
-    return state["names"] == space.names and state["seed"] == seed and same_start
+    return (state["names"] == space.names and state["seed"] == seed and same_start
+            and state.get("model") == model)
 
 
 def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.1, popsize: int | None = None,
@@ -462,8 +466,8 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
     ckpt = Path(checkpoint) if checkpoint else None
     state = None
     if ckpt is not None and ckpt.exists():
-        if not checkpoint_matches(ckpt, space, seed):
-            raise ValueError(f"checkpoint {ckpt} belongs to another fit (different parameters, start or seed); "
+        if not checkpoint_matches(ckpt, space, seed, settings.get("xml")):
+            raise ValueError(f"checkpoint {ckpt} belongs to another fit (different parameters, start, seed or model); "
                              "delete it")
         with open(ckpt, "rb") as f:
             state = pickle.load(f)
@@ -475,7 +479,7 @@ def fit_cma(objective: TrajectoryObjective, *, seed: int = 0, sigma0: float = 0.
             opts["popsize"] = popsize
         es = cma.CMAEvolutionStrategy(space.to_unit(space.x0), sigma0, opts)
         val0 = float(validation(space.x0[None])[0]) if validation is not None else float("nan")
-        state = {"names": space.names, "seed": seed, "x0": space.x0.copy(), "es": es,
+        state = {"names": space.names, "seed": seed, "x0": space.x0.copy(), "model": settings.get("xml"), "es": es,
                  "best_x": space.x0.copy(), "best": cost0,
                  "cost0": cost0, "history": [], "wall": 0.0, "evals": 1,
                  "val0": val0, "val_best": val0, "val_x": space.x0.copy(), "val_train_cost": cost0}

@@ -420,8 +420,8 @@ def fit_parameters(exp: Experiment, model: mujoco.MjModel, train: list[int], hel
     validation = TrajectoryObjective(model, space, exp.init[held], exp.controls[held], exp.reference[held],
                                      exp.dofs) if held else None
     ckpt = fit_file.with_name(fit_file.stem + "_checkpoint.pkl")
-    if ckpt.exists() and not checkpoint_matches(ckpt, space, settings.seed):
-        print(f"{ckpt}: left by a fit from another start (an earlier run); starting afresh")
+    if ckpt.exists() and not checkpoint_matches(ckpt, space, settings.seed, exp.xml.name):
+        print(f"{ckpt}: left by a fit from another start or model (an earlier run); starting afresh")
         ckpt.unlink()
     fit = fit_cma(objective, seed=settings.seed, sigma0=settings.sigma0, generations=settings.generations,
                   popsize=settings.popsize,

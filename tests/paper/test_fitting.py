@@ -97,6 +97,13 @@ def test_fit_recovers_a_known_damping(tmp_path):
     assert checkpoint_matches(tmp_path / "ckpt.pkl", obj.space, 0)
     assert not checkpoint_matches(tmp_path / "ckpt.pkl", o_space, 0)
     assert not checkpoint_matches(tmp_path / "ckpt.pkl", obj.space, 1)
+    # nor is one of another model file with the same parameters and start
+    assert not checkpoint_matches(tmp_path / "ckpt.pkl", obj.space, 0, "other.xml")
+    named = fit_cma(obj, seed=0, sigma0=0.2, generations=1, checkpoint=tmp_path / "named.pkl", progress=False,
+                    settings={"xml": "pendulum.xml"})
+    assert checkpoint_matches(tmp_path / "named.pkl", obj.space, 0, "pendulum.xml")
+    assert not checkpoint_matches(tmp_path / "named.pkl", obj.space, 0, "pendulum_fibres.xml")
+    assert len(named.history) == 1
     with pytest.raises(ValueError, match="another fit"):
         fit_cma(o_obj, seed=0, sigma0=0.2, generations=45, checkpoint=tmp_path / "ckpt.pkl", progress=False)
 
