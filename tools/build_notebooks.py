@@ -360,13 +360,12 @@ The objective is the squared joint error (rad²) averaged over time and summed o
 training sets, plus a small penalty on moving parameters far (in log10 units) from their start.
 """),
     code("""
-from o2m.paper import passive_fibre_stage
+from o2m.paper import passive_fibre_stage, write_forces_xml
 from o2m.paper.fitting import BOUNDS, PENALTY, TrajectoryObjective, fit_cma, load_fit, parameter_space
 
 # stage 2: the force-fitted model with each set's never-excited elbow and forearm muscles as passive
 # fibres; fibre_exp lays the sets out for it (their initial states switch the fibres on or off)
-forces_xml = forces.write_mjcf(exp.xml, exp.xml.with_name(exp.xml.stem + "_forces.xml"))
-fibre_exp = passive_fibre_stage(exp, forces_xml)
+fibre_exp = passive_fibre_stage(exp, write_forces_xml(exp, forces))
 print(fibre_exp.model.nplugin, "muscles can pull as passive fibres")
 space = parameter_space(fibre_exp.model, exp.dofs, exp.muscles)
 print(len(space), "parameters; penalty weight", PENALTY)

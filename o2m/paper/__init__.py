@@ -14,6 +14,7 @@ from o2m.paper.pipeline import (
     load_experiment,
     passive_fibre_stage,
     run_paper,
+    write_forces_xml,
 )
 from o2m.paper.reproduce import PaperRun, format_summary, reproduce
 
@@ -35,4 +36,5 @@ __all__ = [
     "passive_fibre_stage",
     "reproduce",
     "run_paper",
+    "write_forces_xml",
 ]

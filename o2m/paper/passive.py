@@ -31,7 +31,14 @@ from o2m.mj.posing import joint_equality_plan
 from o2m.osim.fibres import PassiveFibre, passive_fibres
 from o2m.paper.floor import recorded_state
 from o2m.paper.passive_stage import fibre_muscles, initial_fibre_lengths, passive_muscles
-from o2m.paper.pipeline import DATA_DIR, Experiment, joint_mae, load_experiment, load_fresh_experiment
+from o2m.paper.pipeline import (
+    DATA_DIR,
+    Experiment,
+    joint_mae,
+    load_experiment,
+    load_fresh_experiment,
+    write_forces_xml,
+)
 
 __all__ = ["figure", "fibre_forces_along", "fibre_run", "fitted_passive_force", "plugin_run"]
 
@@ -102,18 +109,14 @@ def plugin_run(exp: Experiment, fitted_xml: str | Path, fibres: dict[str, Passiv
     ``mujoco.rollout``."""
     from mujoco import rollout
 
-    from o2m.mj.fibre_plugin import with_fibres
+    from o2m.mj.fibre_plugin import fibre_state, with_fibres
 
-    xml = with_fibres(fitted_xml, Path(fitted_xml).with_name(Path(fitted_xml).stem + "_fibres.xml"), fibres, start)
+    xml = with_fibres(fitted_xml, Path(fitted_xml).with_name(Path(fitted_xml).stem + "_fibres.xml"), fibres)
     m = mujoco.MjModel.from_xml_path(str(xml))
-    d = mujoco.MjData(m)  # its fibres at their start; the rest from the experiment's initial state
-    mujoco.mj_setState(m, d, exp.init[i], mujoco.mjtState.mjSTATE_TIME | mujoco.mjtState.mjSTATE_PHYSICS)
-    init = np.zeros(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
-    mujoco.mj_getState(m, d, init, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    qadr = [m.jnt_qposadr[m.joint(n).id] for n in exp.dofs]
-    first = d.qpos[qadr].copy()
-    states, _ = rollout.rollout(m, d, init[None], exp.controls[i][None])
-    return np.vstack([first, states[0][:, [1 + a for a in qadr]]])[: exp.reference.shape[1]]  # after the time
+    init = fibre_state(m, exp.init[i], {n: start[n] for n in fibres})
+    cols = [1 + m.jnt_qposadr[m.joint(n).id] for n in exp.dofs]  # after the time
+    states, _ = rollout.rollout(m, mujoco.MjData(m), init[None], exp.controls[i][None])
+    return np.vstack([init[cols], states[0][:, cols]])[: exp.reference.shape[1]]
 
 
 def _replay_table(exp: Experiment, model: mujoco.MjModel, fibres: dict[str, PassiveFibre], sets: list[int],
@@ -200,7 +203,7 @@ def main() -> None:
         return
     among = fibre_muscles(exp, model)
     print("fibres for the passive ones among:", " ".join(among))
-    fitted_xml = forces.write_mjcf(exp.xml, Path(exp.xml).with_name(Path(exp.xml).stem + "_forces.xml"))
+    fitted_xml = write_forces_xml(exp, forces)
     try:
         load_plugin(Path(a.out))
     except O2MError as err:  # no C compiler here: the tables without the plugin's row

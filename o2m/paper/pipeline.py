@@ -191,7 +191,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
                                progress=progress)
     force_model = forces.apply(exp.model)
     force_seconds = time.perf_counter() - t_force
-    forces_xml = forces.write_mjcf(exp.xml, exp.xml.with_name(exp.xml.stem + "_forces.xml"))
+    forces_xml = write_forces_xml(exp, forces)
     fibre_exp = passive_fibre_stage(exp, forces_xml)
     held = [i for i in exp.dataset.validation if exp.dataset.ok[i]]
     paper_settings = replace(settings, generations=settings.paper_generations or settings.generations,
@@ -289,6 +289,12 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def write_forces_xml(exp: Experiment, forces: ForceFit) -> Path:
+    """Write the converted model with the muscle force fit ``forces`` beside it, as
+    ``<stem>_forces.xml``; returns that file."""
+    return forces.write_mjcf(exp.xml, exp.xml.with_name(exp.xml.stem + "_forces.xml"))
 
 
 def passive_fibre_stage(exp: Experiment, forces_xml: Path) -> Experiment:
@@ -481,7 +487,7 @@ def fit_muscle_forces(exp: Experiment, sets: list[int], path: str | os.PathLike[
 def fitted_experiment(exp: Experiment, forces: ForceFit, fit: FitResult) -> Experiment:
     """``exp`` laid out for o2m's fitted model, which is its ``model``: the converted model with the
     muscle force fit, the passive fibres (:func:`passive_fibre_stage`) and the CMA-ES parameters."""
-    fibre_exp = passive_fibre_stage(exp, forces.write_mjcf(exp.xml, exp.xml.with_name(exp.xml.stem + "_forces.xml")))
+    fibre_exp = passive_fibre_stage(exp, write_forces_xml(exp, forces))
     space = parameter_space(fibre_exp.model, exp.dofs, exp.muscles)
     if fit.names != space.names:
         raise ValueError("the CMA-ES fit has other parameters than this model; rerun `python -m o2m paper --refit`")
