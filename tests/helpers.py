@@ -108,7 +108,6 @@ MUSCLE_PENDULUM = """
 """
 
 
-
 def pendulum_fibre(slack: float, force: float):
     """An :class:`o2m.osim.fibres.PassiveFibre` for MUSCLE_PENDULUM's "lifter": a stiff linear tendon
     ``slack`` m long, 0.2 m of optimal fibre, no pennation, Schutte's exponential passive curve,
@@ -119,6 +118,7 @@ def pendulum_fibre(slack: float, force: float):
 
     passive = np.exp(8.0 * (FIBRE_GRID - 1.0)) / np.exp(4.0)
     return PassiveFibre("lifter", force, 0.2, slack, 0.0, 20.0 * STRAIN_GRID, passive)
+
 
 def pin_pendulum(name: str, q_range: tuple[float, float] = (-1.0, 1.5),
                  arm_com: tuple[float, float, float] = (0.15, 0.0, 0.0)):
