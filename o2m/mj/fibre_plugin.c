@@ -2,7 +2,7 @@
 // zero activation (o2m.osim.fibres): its state is the fibre length (m), which lengthens to the
 // equilibrium at the tendon's length and never shortens; the force (N) is the tendon's, from its
 // strain. One instance per tendon; the curves come as tables in the instance's config
-// (o2m.mj.fibre_plugin.with_fibres writes them). Built by o2m.mj.fibre_plugin.build.
+// (o2m.mj.fibre_plugin.with_fibres writes them). Built by o2m.mj.plugins.build.
 // A negative fibre length switches the instance off (the muscle is excited in this run and pulls
 // as the MuJoCo muscle and tendon spring it is). While on, the fibre's pull replaces the tendon's
 // own spring and damper, which it cancels as MuJoCo computes them (mj_passive's polynomial spring

@@ -13,9 +13,6 @@ step with ``mj_step`` and ``mujoco.rollout`` (the fibre lengths are part of ``mj
 
 from __future__ import annotations
 
-import hashlib
-import shutil
-import subprocess
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,6 +21,7 @@ import numpy as np
 from lxml import etree
 
 from o2m.errors import O2MError
+from o2m.mj import plugins
 
 if TYPE_CHECKING:
     from o2m.osim.fibres import PassiveFibre
@@ -41,34 +39,12 @@ OFF = -1.0
 
 def build(folder: str | Path) -> Path:
     """The plugin library in ``folder`` (compiled there if this source and MuJoCo version have none)."""
-    wheel = Path(mujoco.__file__).parent
-    key = hashlib.sha256(SOURCE.read_bytes() + mujoco.__version__.encode()).hexdigest()[:12]
-    lib = Path(folder) / f"libo2mfibre-{key}.so"
-    if lib.exists():
-        return lib
-    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    libmujoco = sorted(wheel.glob("libmujoco.so*")) + sorted(wheel.glob("libmujoco*.dylib"))
-    if cc is None or not libmujoco:
-        raise O2MError(f"the {PLUGIN} plugin needs a C compiler and MuJoCo's library (found: compiler {cc}, "
-                       f"library {[p.name for p in libmujoco]})")
-    lib.parent.mkdir(parents=True, exist_ok=True)
-    cmd = [cc, "-shared", "-fPIC", "-O2", "-I", str(wheel / "include"), "-o", str(lib), str(SOURCE),
-           str(libmujoco[0]), f"-Wl,-rpath,{wheel}", "-lm"]
-    res = subprocess.run(cmd, capture_output=True, text=True)
-    if res.returncode != 0:
-        raise O2MError(f"compiling the {PLUGIN} plugin failed: {res.stderr.strip()[:500]}")
-    return lib
+    return plugins.build(SOURCE, folder)
 
 
 def load(folder: str | Path) -> Path:
     """Build the plugin (:func:`build`) and load it into this process's MuJoCo; returns the library."""
-    lib = build(folder)
-    try:
-        mujoco.mj_loadPluginLibrary(str(lib))
-    except mujoco.FatalError as err:  # built and loaded before in this process (another folder)
-        if "already registered" not in str(err):
-            raise
-    return lib
+    return plugins.load(SOURCE, folder)
 
 
 def with_fibres(xml_in: str | Path, xml_out: str | Path, fibres: dict[str, PassiveFibre],
