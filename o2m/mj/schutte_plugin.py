@@ -1,0 +1,117 @@
+"""The ``o2m.schutte`` MuJoCo plugin: OpenSim's Schutte1993 muscle, whole, as a MuJoCo actuator.
+
+MuJoCo's muscle has a rigid tendon and no fibre state. OpenSim's Schutte1993Muscle_Deprecated
+(:mod:`o2m.osim.schutte`) has an elastic tendon in series with a fibre whose length is a state, so
+its tendon force lags its activation and a passive fibre stays long after a stretch. No fit of
+MuJoCo's muscle parameters reproduces either; ``schutte_plugin.c`` (shipped with o2m) is that
+muscle as an actuator plugin: the actuator keeps its tendon and its control (the excitation),
+and the plugin's state (activation, fibre length in m) is part of ``mjSTATE_FULLPHYSICS``, so
+``mj_step`` and ``mujoco.rollout`` carry it. The plugin's time step is the Euler integrator's
+(``advance`` runs after it); other integrators would step the fibre once per MuJoCo step all the
+same. Compiled at first use (:mod:`o2m.mj.plugins`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+from o2m.errors import O2MError
+from o2m.mj import plugins
+
+if TYPE_CHECKING:
+    from o2m.osim.schutte import SchutteMuscle
+
+__all__ = ["PLUGIN", "load", "schutte_actuators", "schutte_state", "with_schutte_muscles"]
+
+PLUGIN = "o2m.schutte"
+SOURCE = Path(__file__).with_name("schutte_plugin.c")
+
+
+def load(folder: str | Path) -> Path:
+    """Build the plugin into ``folder`` and load it into this process's MuJoCo; returns the library."""
+    return plugins.load(SOURCE, folder)
+
+
+def _config(muscle: SchutteMuscle) -> dict[str, str]:
+    numbers = {"f0": muscle.max_isometric_force, "l0": muscle.optimal_fiber_length,
+               "lts": muscle.tendon_slack_length, "sina0": np.sin(muscle.pennation_angle_at_optimal),
+               "time_scale": muscle.time_scale, "activation1": muscle.activation1,
+               "activation2": muscle.activation2, "damping": muscle.damping, "activation0": 0.0,
+               "fibre0": muscle.optimal_fiber_length}
+    return ({k: f"{float(v):.17g}" for k, v in numbers.items()}
+            | {"tendon_curve": muscle.tendon.config(), "active_curve": muscle.active.config(),
+               "passive_curve": muscle.passive.config()})
+
+
+def with_schutte_muscles(xml_in: str | Path, xml_out: str | Path, muscles: Mapping[str, SchutteMuscle]) -> Path:
+    """Write ``xml_out``: ``xml_in`` with each tendon actuator named in ``muscles`` replaced, in
+    place (the controls keep their layout), by an ``o2m.schutte`` actuator plugin on the same
+    tendon, control in [0, 1] (the excitation). The replaced actuators' tendons must have no spring
+    or damping of their own (the muscle's passive force is the plugin's). Set each run's initial
+    activations and fibre lengths with :func:`schutte_state`. ``xml_out`` goes beside ``xml_in``
+    (the meshes' relative paths)."""
+    model = mujoco.MjModel.from_xml_path(str(xml_in))
+    tree = etree.parse(str(xml_in))
+    actuators = tree.getroot().find("actuator")
+    missing = set(muscles)
+    for element in [] if actuators is None else list(actuators):
+        name = element.get("name")
+        if name not in muscles:
+            continue
+        a = model.actuator(name).id
+        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_TENDON:
+            raise O2MError(f"{xml_in}: actuator '{name}' pulls on no tendon, so {PLUGIN} cannot replace it")
+        t = int(model.actuator_trnid[a, 0])
+        if model.tendon_stiffness[t] or model.tendon_damping[t] or np.any(model.tendon_stiffnesspoly[t]) \
+                or np.any(model.tendon_dampingpoly[t]):
+            raise O2MError(f"{xml_in}: the tendon of '{name}' has a spring or damper, which {PLUGIN}'s muscle "
+                           "would pull beside; convert without them")
+        plugin = etree.Element("plugin", name=name, plugin=PLUGIN, tendon=model.tendon(t).name,
+                               ctrllimited="true", ctrlrange="0 1")
+        for key, value in _config(muscles[name]).items():
+            etree.SubElement(plugin, "config", key=key, value=value)
+        plugin.tail = element.tail
+        actuators.replace(element, plugin)
+        missing.discard(name)
+    if missing:
+        raise O2MError(f"{xml_in} has no actuators named {sorted(missing)}")
+    root = tree.getroot()
+    extension = root.find("extension")
+    extension = etree.SubElement(root, "extension") if extension is None else extension
+    if not any(p.get("plugin") == PLUGIN for p in extension.findall("plugin")):
+        etree.SubElement(extension, "plugin", plugin=PLUGIN)
+    tree.write(str(xml_out), pretty_print=True)
+    return Path(xml_out)
+
+
+def schutte_actuators(model: mujoco.MjModel) -> dict[int, int]:
+    """``{actuator id: plugin instance id}`` of the ``o2m.schutte`` actuators of ``model``."""
+    return {a: int(model.actuator_plugin[a]) for a in range(model.nu) if model.actuator_plugin[a] >= 0}
+
+
+def schutte_state(model: mujoco.MjModel, plain: mujoco.MjModel, state: np.ndarray,
+                  fibre_lengths: Mapping[str, float]) -> np.ndarray:
+    """``model``'s full physics state (nstate,) for a run that ``plain`` (the model before
+    :func:`with_schutte_muscles`) starts from ``state`` (its mjSTATE_FULLPHYSICS): the same time,
+    positions and velocities, each ``o2m.schutte`` actuator at the activation its namesake has in
+    ``state`` and at its ``fibre_lengths`` entry (m)."""
+    src = mujoco.MjData(plain)
+    mujoco.mj_setState(plain, src, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    data = mujoco.MjData(model)
+    data.time, data.qpos[:], data.qvel[:] = src.time, src.qpos, src.qvel
+    for a, instance in schutte_actuators(model).items():
+        name = model.actuator(a).name
+        if name not in fibre_lengths:
+            raise O2MError(f"no initial fibre length for the {PLUGIN} actuator '{name}'")
+        pa = plain.actuator(name).id
+        adr = model.plugin_stateadr[instance]
+        data.plugin_state[adr:adr + 2] = src.act[plain.actuator_actadr[pa]], fibre_lengths[name]
+    out = np.zeros(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
+    mujoco.mj_getState(model, data, out, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    return out
