@@ -208,10 +208,11 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     space.write_mjcf(fibre_exp.model, fit.x, fibre_exp.xml, fitted_xml.with_name(fitted_xml.stem + "_fibres.xml"))
 
     paper_fitted = paper_space.apply(exp.model, paper_fit.x)
-    # each stage's model with the experiment laid out for it (o2m's fibres carry their initial states)
+    schutte_exp = schutte_stage(exp)
+    # each stage's model with the experiment laid out for it (o2m's plugins carry their initial states)
     stage_runs = {"converted": (exp, exp.model), "force_fitted": (exp, force_model),
                   "fibres": (fibre_exp, fibre_exp.model), "fitted": (fibre_exp, fitted),
-                  "paper_fitted": (exp, paper_fitted)}
+                  "paper_fitted": (exp, paper_fitted), "schutte": (schutte_exp, schutte_exp.model)}
     errors, trajectories = {}, {}
     for name, (e, m) in stage_runs.items():
         errors[name], trajectories[name] = joint_mae(e, m, test)
@@ -232,7 +233,8 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     fresh, fresh_sizes = {}, {}
     if fresh_exp:
         fresh_fibres = passive_fibre_stage(fresh_exp[0], forces_xml)
-        fresh = {name: joint_mae(fresh_fibres if e is fibre_exp else fresh_exp[0], m, fresh_exp[1])[0]
+        fresh_stage = {id(fibre_exp): fresh_fibres, id(schutte_exp): schutte_stage(fresh_exp[0])}
+        fresh = {name: joint_mae(fresh_stage.get(id(e), fresh_exp[0]), m, fresh_exp[1])[0]
                  for name, (e, m) in stage_runs.items()}
     if fresh_exp and settings.fresh_corrections:
         columns = {"corrected": (fresh_fibres, fitted, True, settings.correction_method),
@@ -257,6 +259,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         overlay_corrected=corrected[2], overlay_paper_fitted=trajectories["paper_fitted"][:k],
         overlay_paper_corrected=paper_corrected[2],
         err_fibres=errors["fibres"], overlay_fibres=trajectories["fibres"][:k],
+        err_schutte=errors["schutte"], overlay_schutte=trajectories["schutte"][:k],
         **{f"fresh_err_{name}": e for name, e in fresh.items()})
     summary = {
         "settings": settings.__dict__, "n_train": len(train), "n_test": len(test),
@@ -280,6 +283,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         "fitted_xml": str(fitted_xml),
         "passive_fibres": {"xml": str(fitted_xml.with_name(fitted_xml.stem + "_fibres.xml")),
                            "muscles": sorted(fibre_instances(fibre_exp.model).values())},
+        "schutte": {"xml": str(schutte_exp.xml), "plugin": "o2m.schutte", "muscles": len(exp.muscles)},
         "fit": fit_summary(fit),
         "paper_fit": fit_summary(paper_fit),
         # the fits' own times (stored with them); the others only when computed here, so a run
@@ -308,6 +312,18 @@ def passive_fibre_stage(exp: Experiment, forces_xml: Path) -> Experiment:
         return fibre_experiment(exp, forces_xml, forces_xml.parent)
     except O2MError as err:
         raise O2MError(f"o2m's pipeline runs its passive fibres in the o2m.fibre MuJoCo plugin: {err}") from err
+
+
+def schutte_stage(exp: Experiment) -> Experiment:
+    """o2m's Schutte stage on ``exp`` (:func:`o2m.paper.schutte_stage.schutte_experiment`): the
+    converted model with each muscle OpenSim's own, the ``o2m.schutte`` plugin (built beside the
+    model). Raises :class:`O2MError` where the plugin cannot be built (no C compiler)."""
+    from o2m.paper.schutte_stage import schutte_experiment
+
+    try:
+        return schutte_experiment(exp, exp.xml.parent)
+    except O2MError as err:
+        raise O2MError(f"o2m's pipeline runs OpenSim's muscles in the o2m.schutte MuJoCo plugin: {err}") from err
 
 
 def fit_summary(fit: FitResult) -> dict:

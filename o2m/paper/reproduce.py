@@ -21,7 +21,8 @@ __all__ = ["PaperRun", "STAGES", "format_summary", "reproduce"]
 
 #: The stages of both pipelines, as the summary names them, with their column headings.
 STAGES = {"converted": "converted", "paper_fitted": "paper CMA", "paper_corrected": "paper corr",
-          "force_fitted": "o2m forces", "fibres": "o2m fibres", "fitted": "o2m CMA", "corrected": "o2m corr"}
+          "force_fitted": "o2m forces", "fibres": "o2m fibres", "fitted": "o2m CMA", "corrected": "o2m corr",
+          "schutte": "o2m Schutte"}
 
 
 @dataclass
@@ -133,6 +134,7 @@ def format_summary(run: PaperRun) -> str:
         f"o2m's: muscle forces fitted {e['force_fitted']:.4f}, passive fibres {e['fibres']:.4f}, "
         f"CMA-ES fitted {e['fitted']:.4f}, "
         f"with corrections {e['corrected']:.4f}"
+        + (f"; OpenSim's own muscles in MuJoCo (o2m.schutte, no fit) {e['schutte']:.4f}" if "schutte" in e else "")
     )
     lines += _stage_table(s["per_joint_error_rad"], {k: v for k, v in STAGES.items() if k in e})
     if s.get("paper_corrected_sets", s["n_test"]) < s["n_test"]:
@@ -172,6 +174,8 @@ def format_summary(run: PaperRun) -> str:
     if s.get("passive_fibres"):
         pf = s["passive_fibres"]
         lines.append(f"  with its passive fibres ({len(pf['muscles'])} muscles, the o2m.fibre plugin): {pf['xml']}")
+    if s.get("schutte"):
+        lines.append(f"With OpenSim's own muscles (the o2m.schutte plugin, no fit): {s['schutte']['xml']}")
     lines.append(
         f"Speed: OpenSim {sp['opensim_median_s']:.2f} s, MuJoCo {sp['mujoco_median_s']:.4f} s per 1-s "
         f"simulation: {sp['ratio']:.0f}x; batched rollouts {sp['rollout_per_s']:.0f} simulations/s"
