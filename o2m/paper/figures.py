@@ -148,7 +148,8 @@ def make_figures(results_dir: str | os.PathLike[str], out_dir: str | os.PathLike
         stages = {"converted": "converted", "paper_fitted": "paper: + CMA-ES fit",
                   "paper_corrected": "paper: + corrections", "forces": "o2m: muscle forces fitted",
                   "fibres": "o2m: + passive fibres", "fitted": "o2m: + CMA-ES fit", "corrected": "o2m: + corrections",
-                  "schutte": "o2m: OpenSim's muscles, no fit"}
+                  "schutte": "o2m: OpenSim's muscles, no fit",
+                  "schutte_corrected": "o2m: OpenSim's muscles + corrections"}
         errors = {label: r[f"err_{key}"] for key, label in stages.items() if f"err_{key}" in r}
         if "paper_corrected_sets" in r and len(r["paper_corrected_sets"]) < len(r["test"]):
             n = len(r["paper_corrected_sets"])

@@ -225,7 +225,11 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     paper_corrected = correct_sets(exp, paper_fitted, paper_test, settings=settings, force_start=False,
                                    progress=progress, cache=out / "corrections_paper.npz", refit=refit, keep=k,
                                    method=PAPER_CORRECTION_METHOD)
+    schutte_corrected = correct_sets(schutte_exp, schutte_exp.model, test, settings=settings, force_start=False,
+                                     progress=progress, cache=out / "corrections_schutte.npz", refit=refit, keep=k,
+                                     method=settings.correction_method)
     errors["corrected"] = corrected[0]
+    errors["schutte_corrected"] = schutte_corrected[0]
     # NaN rows for test sets the paper's pipeline was not corrected on (a smaller budget)
     errors["paper_corrected"] = np.full_like(corrected[0], np.nan)
     errors["paper_corrected"][: len(paper_test)] = paper_corrected[0]
@@ -233,12 +237,14 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     fresh, fresh_sizes = {}, {}
     if fresh_exp:
         fresh_fibres = passive_fibre_stage(fresh_exp[0], forces_xml)
-        fresh_stage = {id(fibre_exp): fresh_fibres, id(schutte_exp): schutte_stage(fresh_exp[0])}
+        fresh_schutte = schutte_stage(fresh_exp[0])
+        fresh_stage = {id(fibre_exp): fresh_fibres, id(schutte_exp): fresh_schutte}
         fresh = {name: joint_mae(fresh_stage.get(id(e), fresh_exp[0]), m, fresh_exp[1])[0]
                  for name, (e, m) in stage_runs.items()}
     if fresh_exp and settings.fresh_corrections:
         columns = {"corrected": (fresh_fibres, fitted, True, settings.correction_method),
-                   "paper_corrected": (fresh_exp[0], paper_fitted, False, PAPER_CORRECTION_METHOD)}
+                   "paper_corrected": (fresh_exp[0], paper_fitted, False, PAPER_CORRECTION_METHOD),
+                   "schutte_corrected": (fresh_schutte, schutte_exp.model, False, settings.correction_method)}
         for name, (err, size) in correct_fresh_sets(fresh_exp[1], columns, out, settings=settings, refit=refit,
                                                     progress=progress).items():
             fresh[name], fresh_sizes[name] = err, float(np.mean(size))
@@ -260,6 +266,8 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         overlay_paper_corrected=paper_corrected[2],
         err_fibres=errors["fibres"], overlay_fibres=trajectories["fibres"][:k],
         err_schutte=errors["schutte"], overlay_schutte=trajectories["schutte"][:k],
+        err_schutte_corrected=schutte_corrected[0], correction_mae_schutte=schutte_corrected[1],
+        overlay_schutte_corrected=schutte_corrected[2],
         **{f"fresh_err_{name}": e for name, e in fresh.items()})
     summary = {
         "settings": settings.__dict__, "n_train": len(train), "n_test": len(test),
@@ -271,6 +279,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
         "split_error_rad": split_errors,
         "mean_abs_correction": float(np.mean(corrected[1])),
         "mean_abs_correction_paper": float(np.mean(paper_corrected[1])),
+        "mean_abs_correction_schutte": float(np.mean(schutte_corrected[1])),
         "paper_corrected_sets": len(paper_test),
         "corrected_on_paper_sets": float(np.mean(corrected[0][: len(paper_test)])),
         "mean_abs_correction_on_paper_sets": float(np.mean(corrected[1][: len(paper_test)])),

@@ -22,7 +22,7 @@ __all__ = ["PaperRun", "STAGES", "format_summary", "reproduce"]
 #: The stages of both pipelines, as the summary names them, with their column headings.
 STAGES = {"converted": "converted", "paper_fitted": "paper CMA", "paper_corrected": "paper corr",
           "force_fitted": "o2m forces", "fibres": "o2m fibres", "fitted": "o2m CMA", "corrected": "o2m corr",
-          "schutte": "o2m Schutte"}
+          "schutte": "o2m Schutte", "schutte_corrected": "Schutte corr"}
 
 
 @dataclass
@@ -134,7 +134,8 @@ def format_summary(run: PaperRun) -> str:
         f"o2m's: muscle forces fitted {e['force_fitted']:.4f}, passive fibres {e['fibres']:.4f}, "
         f"CMA-ES fitted {e['fitted']:.4f}, "
         f"with corrections {e['corrected']:.4f}"
-        + (f"; OpenSim's own muscles in MuJoCo (o2m.schutte, no fit) {e['schutte']:.4f}" if "schutte" in e else "")
+        + (f"; OpenSim's own muscles in MuJoCo (o2m.schutte, no fit) {e['schutte']:.4f}, with corrections "
+           f"{e['schutte_corrected']:.4f}" if "schutte_corrected" in e else "")
     )
     lines += _stage_table(s["per_joint_error_rad"], {k: v for k, v in STAGES.items() if k in e})
     if s.get("paper_corrected_sets", s["n_test"]) < s["n_test"]:
@@ -156,12 +157,16 @@ def format_summary(run: PaperRun) -> str:
         f"Muscle force fit: RMS error {mf['rms_held_out_start']:.2f} -> {mf['rms_held_out']:.2f} % of max isometric "
         f"force on held-out states ({mf['kept']} of {mf['muscles']} muscles changed)"
     )
+    schutte = (f", o2m's with OpenSim's muscles {s['mean_abs_correction_schutte']:.4f}"
+               if "mean_abs_correction_schutte" in s else "")
     lines.append(f"Mean absolute correction: paper's pipeline {s['mean_abs_correction_paper']:.4f}, "
-                 f"o2m's {s['mean_abs_correction']:.4f}")
+                 f"o2m's {s['mean_abs_correction']:.4f}{schutte}")
     fresh_sizes = fresh.get("mean_abs_correction", {})
     if fresh_sizes:
+        schutte = (f", o2m's with OpenSim's muscles {fresh_sizes['schutte_corrected']:.4f}"
+                   if "schutte_corrected" in fresh_sizes else "")
         lines.append(f"  on the fresh sets: paper's pipeline {fresh_sizes['paper_corrected']:.4f}, "
-                     f"o2m's {fresh_sizes['corrected']:.4f}")
+                     f"o2m's {fresh_sizes['corrected']:.4f}{schutte}")
     for label, key in (("CMA-ES, paper's pipeline (best training candidate)", "paper_fit"),
                        ("CMA-ES, o2m's pipeline (early-stopped on validation)", "fit")):
         f = s[key]
