@@ -50,6 +50,16 @@ def cmd_convert(a: argparse.Namespace) -> int:
           f"wrote {result.xml} ({result.report.seconds:.2f} s; {len(result.report.approximations)} "
           f"approximations, {len(result.report.skipped)} elements skipped; see "
           f"{result.xml.with_suffix('.report.txt')})")
+    if a.opensim_muscles:
+        from o2m.convert.opensim_muscles import write_opensim_muscles
+        from o2m.mj.schutte_plugin import load
+
+        lib = load(result.xml.parent)
+        own = write_opensim_muscles(osim, result.xml)
+        print(f"wrote {own.xml}: {len(own.muscles)} muscles are OpenSim's own (the o2m.schutte plugin, {lib}; "
+              "load it with o2m.mj.schutte_plugin.load before opening the file)"
+              + (f"; {len(own.kept)} stay MuJoCo muscles ({', '.join(sorted(set(own.kept.values())))})"
+                 if own.kept else ""))
     if a.moment_arm_plots:
         pdf = result.xml.with_suffix(".moment_arms.pdf")
         rows = moment_arm_report(osim, result.xml, pdf, n=21 if quick else 41,
@@ -243,6 +253,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--clamped-limits", action="store_true",
                    help="give clamped coordinates MuJoCo hard limits at their range (default: unlimited, as in "
                         "OpenSim's forward dynamics, which enforces a clamped range only when setting values)")
+    c.add_argument("--opensim-muscles", action="store_true",
+                   help="also write <stem>_opensim_muscles.xml, with each Schutte1993 muscle OpenSim's own (the "
+                        "o2m.schutte MuJoCo plugin, compiled with the machine's C compiler)")
     c.add_argument("--no-moment-arm-plots", dest="moment_arm_plots", action="store_false",
                    help="skip the moment-arm sweeps against OpenSim (<stem>.moment_arms.pdf)")
     c.set_defaults(func=cmd_convert)

@@ -408,6 +408,21 @@ else:
     paper_fit = load_fit(DATA / "results" / "parameters_paper.json")
 print(f"training cost {paper_fit.cost0:.4g} -> {paper_fit.cost:.4g}; validation cost "
       f"{paper_fit.validation_cost0:.4g} -> {paper_fit.validation_cost:.4g}; {paper_fit.evaluations} candidates")"""),
+    md("""
+## OpenSim's own muscles inside MuJoCo: nothing to fit
+
+Every stage above fits MuJoCo's muscle to behave like OpenSim's. o2m can instead run OpenSim's
+muscle itself inside MuJoCo: the `o2m.schutte` actuator plugin (compiled at first use) is
+Schutte's muscle with its elastic tendon and its fibre, whose activation and fibre length are
+the plugin's state, each muscle with its own parameters and curves read from the `.osim`. Each
+set starts where OpenSim started (its initial activations and fibre lengths). Nothing is fitted:
+the converted model's skeleton and paths, OpenSim's muscles.
+"""),
+    code("""
+from o2m.paper import schutte_stage
+
+schutte_exp = schutte_stage(exp)  # the converted model with every muscle an o2m.schutte actuator
+print(schutte_exp.model.nu, "actuators,", schutte_exp.model.npluginstate, "plugin states;", schutte_exp.xml.name)"""),
     md("## Test error per joint, stage by stage"),
     code("""
 from o2m.paper import joint_mae
@@ -416,7 +431,8 @@ test = exp.dataset.test[:3] if QUICK else exp.dataset.test
 # each stage's model with the sets laid out for it
 stages = {"converted": (exp, exp.model), "paper: CMA-ES": (exp, paper_space.apply(exp.model, paper_fit.x)),
           "o2m: forces": (exp, fitted_forces), "o2m: + fibres": (fibre_exp, fibre_exp.model),
-          "o2m: + CMA-ES": (fibre_exp, space.apply(fibre_exp.model, fit.x))}
+          "o2m: + CMA-ES": (fibre_exp, space.apply(fibre_exp.model, fit.x)),
+          "OpenSim muscles": (schutte_exp, schutte_exp.model)}
 errors = {k: np.nanmean(joint_mae(e, m, test)[0], axis=0) for k, (e, m) in stages.items()}
 print(f"{'DoF':15s}" + "".join(f"{k:>15s}" for k in errors) + "   (mean absolute error, rad)")
 for j, d in enumerate(exp.dofs):

@@ -38,22 +38,26 @@ def load(folder: str | Path) -> Path:
     return plugins.load(SOURCE, folder)
 
 
-def _config(muscle: SchutteMuscle) -> dict[str, str]:
+def _config(muscle: SchutteMuscle, start: tuple[float, float] | None) -> dict[str, str]:
+    activation0, fibre0 = start if start is not None else (0.0, muscle.optimal_fiber_length)
     numbers = {"f0": muscle.max_isometric_force, "l0": muscle.optimal_fiber_length,
                "lts": muscle.tendon_slack_length, "sina0": np.sin(muscle.pennation_angle_at_optimal),
                "time_scale": muscle.time_scale, "activation1": muscle.activation1,
-               "activation2": muscle.activation2, "damping": muscle.damping, "activation0": 0.0,
-               "fibre0": muscle.optimal_fiber_length}
+               "activation2": muscle.activation2, "damping": muscle.damping, "activation0": activation0,
+               "fibre0": fibre0}
     return ({k: f"{float(v):.17g}" for k, v in numbers.items()}
             | {"tendon_curve": muscle.tendon.config(), "active_curve": muscle.active.config(),
                "passive_curve": muscle.passive.config()})
 
 
-def with_schutte_muscles(xml_in: str | Path, xml_out: str | Path, muscles: Mapping[str, SchutteMuscle]) -> Path:
+def with_schutte_muscles(xml_in: str | Path, xml_out: str | Path, muscles: Mapping[str, SchutteMuscle],
+                         start: Mapping[str, tuple[float, float]] | None = None) -> Path:
     """Write ``xml_out``: ``xml_in`` with each tendon actuator named in ``muscles`` replaced, in
     place (the controls keep their layout), by an ``o2m.schutte`` actuator plugin on the same
     tendon, control in [0, 1] (the excitation). The replaced actuators' tendons must have no spring
-    or damping of their own (the muscle's passive force is the plugin's). Set each run's initial
+    or damping of their own (the muscle's passive force is the plugin's). ``start``: per muscle the
+    (activation, fibre length m) ``mj_resetData`` starts from (default 0 and the optimal fibre
+    length); keyframes drop the replaced actuators' activations. Set each run's initial
     activations and fibre lengths with :func:`schutte_state`. ``xml_out`` goes beside ``xml_in``
     (the meshes' relative paths)."""
     model = mujoco.MjModel.from_xml_path(str(xml_in))
@@ -74,7 +78,7 @@ def with_schutte_muscles(xml_in: str | Path, xml_out: str | Path, muscles: Mappi
                            "would pull beside; convert without them")
         plugin = etree.Element("plugin", name=name, plugin=PLUGIN, tendon=model.tendon(t).name,
                                ctrllimited="true", ctrlrange="0 1")
-        for key, value in _config(muscles[name]).items():
+        for key, value in _config(muscles[name], (start or {}).get(name)).items():
             etree.SubElement(plugin, "config", key=key, value=value)
         plugin.tail = element.tail
         actuators.replace(element, plugin)
@@ -82,12 +86,28 @@ def with_schutte_muscles(xml_in: str | Path, xml_out: str | Path, muscles: Mappi
     if missing:
         raise O2MError(f"{xml_in} has no actuators named {sorted(missing)}")
     root = tree.getroot()
+    _drop_key_activations(root, model, set(muscles))
     extension = root.find("extension")
     extension = etree.SubElement(root, "extension") if extension is None else extension
     if not any(p.get("plugin") == PLUGIN for p in extension.findall("plugin")):
         etree.SubElement(extension, "plugin", plugin=PLUGIN)
     tree.write(str(xml_out), pretty_print=True)
     return Path(xml_out)
+
+
+def _drop_key_activations(root: etree._Element, model: mujoco.MjModel, replaced: set[str]) -> None:
+    """Keyframes' ``act`` without the entries of the ``replaced`` actuators (which have no MuJoCo
+    activation once they are plugins)."""
+    keep = [i for a in range(model.nu) if model.actuator_actadr[a] >= 0 and model.actuator(a).name not in replaced
+            for i in range(model.actuator_actadr[a], model.actuator_actadr[a] + model.actuator_actnum[a])]
+    for key in root.iter("key"):
+        if key.get("act") is None:
+            continue
+        act = np.array(key.get("act").split(), float)
+        if keep:
+            key.set("act", " ".join(f"{x:.17g}" for x in act[keep]))
+        else:
+            del key.attrib["act"]
 
 
 def schutte_actuators(model: mujoco.MjModel) -> dict[int, int]:

@@ -20,7 +20,7 @@ import numpy as np
 from o2m.errors import O2MError
 from o2m.osim import runtime
 
-__all__ = ["CurveTable", "SchutteMuscle", "schutte_muscles"]
+__all__ = ["CurveTable", "SchutteMuscle", "default_states", "muscle_types", "schutte_muscles"]
 
 #: Schutte's force-velocity constants (``calcFiberVelocity``).
 KV, SLOPE_K, FMAX = 0.15, 0.13, 1.4
@@ -153,3 +153,23 @@ def schutte_muscles(osim_path: str | os.PathLike[str], names: list[str]) -> dict
             number("activation2"), number("damping"), table("tendon_force_length_curve", STRAIN_GRID),
             table("active_force_length_curve", FIBRE_GRID), table("passive_force_length_curve", FIBRE_GRID))
     return out
+
+
+def default_states(osim_path: str | os.PathLike[str], names: list[str]) -> dict[str, tuple[float, float]]:
+    """``{muscle: (activation, fibre length m)}`` in the model's default state with its muscles in
+    equilibrium (``equilibrateMuscles``), as OpenSim starts a simulation of it."""
+    osim = runtime.opensim()
+    model = osim.Model(str(osim_path))
+    state = model.initSystem()
+    model.equilibrateMuscles(state)
+    muscles = model.getMuscles()
+    return {n: (float(muscles.get(n).getActivation(state)), float(muscles.get(n).getFiberLength(state)))
+            for n in names}
+
+
+def muscle_types(osim_path: str | os.PathLike[str]) -> dict[str, str]:
+    """``{muscle: OpenSim class}`` of every muscle of the model, in its force set's order."""
+    osim = runtime.opensim()
+    model = osim.Model(str(osim_path))  # kept alive: the muscle set is a view into it
+    muscles = model.getMuscles()
+    return {muscles.get(i).getName(): muscles.get(i).getConcreteClassName() for i in range(muscles.getSize())}

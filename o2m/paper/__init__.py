@@ -1,5 +1,6 @@
 """The paper's experiment on MoBL-ARMS (Ikkala & Hämäläinen, 2020): dataset, muscle force fit,
-CMA-ES, corrective controls, speed and figures, in the order :func:`run_paper` runs them."""
+CMA-ES, OpenSim's own muscles in MuJoCo, corrective controls, speed and figures, in the order
+:func:`run_paper` runs them."""
 
 from o2m.paper.dataset import Dataset, load_dataset, make_dataset
 from o2m.paper.pipeline import (
@@ -14,6 +15,7 @@ from o2m.paper.pipeline import (
     load_experiment,
     passive_fibre_stage,
     run_paper,
+    schutte_stage,
     write_forces_xml,
 )
 from o2m.paper.reproduce import PaperRun, format_summary, reproduce
@@ -36,5 +38,6 @@ __all__ = [
     "passive_fibre_stage",
     "reproduce",
     "run_paper",
+    "schutte_stage",
     "write_forces_xml",
 ]
