@@ -8,8 +8,10 @@ parameters fitted to the joint trajectories with CMA-ES (:mod:`o2m.fitting`), th
 candidate kept. o2m's: first each muscle's force to OpenSim's tendon forces along the training
 trajectories (:mod:`o2m.force_fit`, which the paper did not do), then each set's never-excited
 elbow and forearm muscles as OpenSim's passive fibres (:mod:`o2m.paper.passive_stage`, the
-``o2m.fibre`` plugin), then the same CMA-ES fit, early-stopped on the validation sets. It fits
-corrective controls on the test and fresh sets (:mod:`o2m.corrections`) for both, measures every
+``o2m.fibre`` plugin), then the same CMA-ES fit, early-stopped on the validation sets. Beside
+them o2m runs the converted model with OpenSim's own muscles (:func:`schutte_stage`, the
+``o2m.schutte`` plugin), which needs no fit. It fits corrective controls on the test and fresh
+sets (:mod:`o2m.corrections`) for all three, measures every
 stage on the training, validation, test and fresh sets (:data:`FRESH_DIR`) and writes everything
 the figures need to ``<data>/results/``:
 
@@ -18,12 +20,14 @@ the figures need to ``<data>/results/``:
 ``parameters_paper.json`` the paper's pipeline: the same CMA-ES fit of the converted model (no muscle force
                       fit), the best training candidate (no early stopping)
 ``*_checkpoint.pkl``  CMA-ES state, to resume an interrupted fit (not kept in git)
-``corrections.npz``, ``corrections_paper.npz`` the corrective controls' results of each pipeline,
-                      reused while the corrected model, sets and budget are the same;
+``corrections.npz``, ``corrections_paper.npz``, ``corrections_schutte.npz`` the corrective
+                      controls' results of each pipeline, reused while the corrected model, sets
+                      and budget are the same;
                       ``corrections_fresh_*.npz`` the same on the fresh sets
 ``results.npz``       per test set and DoF, mean absolute joint error (rad) of the converted,
-                      force-fitted, passive-fibre, fitted and corrected model; per test set and muscle, mean absolute
-                      correction; joint trajectories of the first test sets for the overlay
+                      force-fitted, passive-fibre, fitted, OpenSim-muscle and corrected models; per
+                      test set and muscle, mean absolute correction; joint trajectories of the first
+                      test sets for the overlay
 ``summary.json``      the headline numbers and the settings (quick or full)
 
 and the fitted model itself as MJCF beside the converted one: ``<model_dir>/<stem>_fitted.xml``
