@@ -501,6 +501,24 @@ from o2m.mj import rollout
 base = rollout(model, exp.init[[i]], exp.controls[[i]], joint_names=exp.dofs).coordinates[0]
 overlay(t, exp.dofs, exp.reference[i], {"fitted": base, "fitted + corrections": res.coordinates}, f"test set {i}")
 plt.show()'''),
+    md("""
+## The same on OpenSim's own muscles
+
+With each muscle OpenSim's own inside MuJoCo (the `o2m.schutte` plugin, notebook 4's last stage)
+the model starts much nearer OpenSim, so the corrections have less to do. They start from no
+correction: the force-matching start inverts MuJoCo's muscle, which this model does not have.
+"""),
+    code('''
+from o2m.paper import schutte_stage
+
+own = schutte_stage(load_experiment(DATA, OUT / "paper"))
+res_own = fit_corrections(own.model, own.init[i], own.dataset.activations.values[i], own.muscles, own.reference[i],
+                          own.dofs, method=budget.correction_method, iterations=budget.correction_iterations,
+                          generations=budget.correction_generations, sweeps=budget.correction_sweeps, seed=0)
+print("mean absolute joint error (rad):", dict(zip(own.dofs, res_own.joint_mae0.round(4))), "->",
+      dict(zip(own.dofs, res_own.joint_mae.round(4))))
+print(f"mean absolute correction: {np.abs(res_own.correction).mean():.4f} (MuJoCo's fitted muscles: "
+      f"{np.abs(res.correction).mean():.4f})")'''),
 ]
 
 NOTEBOOKS["06_figures.ipynb"] = [

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from o2m.errors import O2MError
 from o2m.osim import runtime
+from o2m.osim.schutte import curve_values, schutte_muscle
 
 __all__ = ["PassiveFibre", "passive_fibres"]
 
@@ -89,20 +89,10 @@ def passive_fibres(osim_path: str | os.PathLike[str], names: list[str]) -> dict[
     model = osim.Model(str(osim_path))
     out = {}
     for name in names:
-        muscle = model.getMuscles().get(name)
-        if muscle.getConcreteClassName() != "Schutte1993Muscle_Deprecated":
-            raise O2MError(f"{osim_path}: muscle '{name}' is a {muscle.getConcreteClassName()}, not a "
-                           "Schutte1993Muscle_Deprecated")
-
-        def curve(prop: str, grid: np.ndarray, muscle=muscle) -> np.ndarray:
-            p = muscle.getPropertyByName(prop)
-            if prop == "passive_force_length_curve" and p.getValueIsDefault():
-                return np.exp(8.0 * (grid - 1.0)) / np.exp(4.0)  # Schutte's calcNonzeroPassiveForce
-            fn = osim.Function.safeDownCast(p.getValueAsObject())
-            return np.array([fn.calcValue(osim.Vector(1, float(x))) for x in grid])
-
+        muscle = schutte_muscle(model, name, osim_path)
         out[name] = PassiveFibre(
             name, muscle.getMaxIsometricForce(), muscle.getOptimalFiberLength(), muscle.getTendonSlackLength(),
             float(np.sin(muscle.getPennationAngleAtOptimalFiberLength())),
-            curve("tendon_force_length_curve", STRAIN_GRID), curve("passive_force_length_curve", FIBRE_GRID))
+            curve_values(muscle, "tendon_force_length_curve", STRAIN_GRID),
+            curve_values(muscle, "passive_force_length_curve", FIBRE_GRID))
     return out

@@ -20,7 +20,8 @@ import numpy as np
 from o2m.errors import O2MError
 from o2m.osim import runtime
 
-__all__ = ["CurveTable", "SchutteMuscle", "default_states", "muscle_types", "schutte_muscles"]
+__all__ = ["CurveTable", "SchutteMuscle", "curve_values", "default_states", "muscle_types", "schutte_muscle",
+           "schutte_muscles"]
 
 #: Schutte's force-velocity constants (``calcFiberVelocity``).
 KV, SLOPE_K, FMAX = 0.15, 0.13, 1.4
@@ -123,29 +124,42 @@ class SchutteMuscle:
         return float(a), float(brentq(residual, lo, hi, xtol=1e-15, rtol=1e-14))
 
 
+def schutte_muscle(model, name: str, osim_path: str | os.PathLike[str]):
+    """The OpenSim muscle ``name`` of ``model`` (loaded from ``osim_path``); :class:`O2MError` unless
+    it is a Schutte1993Muscle_Deprecated."""
+    muscle = model.getMuscles().get(name)
+    if muscle.getConcreteClassName() != "Schutte1993Muscle_Deprecated":
+        raise O2MError(f"{osim_path}: muscle '{name}' is a {muscle.getConcreteClassName()}, not a "
+                       "Schutte1993Muscle_Deprecated")
+    return muscle
+
+
+def curve_values(muscle, prop: str, xs: np.ndarray) -> np.ndarray:
+    """The Schutte muscle's curve ``prop`` (e.g. ``"tendon_force_length_curve"``) at ``xs``, by
+    OpenSim's own ``Function.calcValue``; the passive curve left at its default is Schutte's
+    exponential (``calcNonzeroPassiveForce``)."""
+    osim = runtime.opensim()
+    p = muscle.getPropertyByName(prop)
+    if prop == "passive_force_length_curve" and p.getValueIsDefault():
+        return np.exp(8.0 * (xs - 1.0)) / np.exp(4.0)
+    fn = osim.Function.safeDownCast(p.getValueAsObject())
+    return np.array([fn.calcValue(osim.Vector(1, float(x))) for x in xs])
+
+
 def schutte_muscles(osim_path: str | os.PathLike[str], names: list[str]) -> dict[str, SchutteMuscle]:
     """:class:`SchutteMuscle` of each muscle ``names`` of the model (each a Schutte1993Muscle_Deprecated)."""
     osim = runtime.opensim()
     model = osim.Model(str(osim_path))
     out = {}
     for name in names:
-        muscle = model.getMuscles().get(name)
-        if muscle.getConcreteClassName() != "Schutte1993Muscle_Deprecated":
-            raise O2MError(f"{osim_path}: muscle '{name}' is a {muscle.getConcreteClassName()}, not a "
-                           "Schutte1993Muscle_Deprecated")
+        muscle = schutte_muscle(model, name, osim_path)
 
         def number(prop: str, muscle=muscle) -> float:
             return osim.PropertyHelper.getValueDouble(muscle.getPropertyByName(prop))
 
         def table(prop: str, grid: tuple[float, float, int], muscle=muscle) -> CurveTable:
             xs = np.linspace(*grid)
-            p = muscle.getPropertyByName(prop)
-            if prop == "passive_force_length_curve" and p.getValueIsDefault():
-                ys = np.exp(8.0 * (xs - 1.0)) / np.exp(4.0)  # calcNonzeroPassiveForce's default
-            else:
-                fn = osim.Function.safeDownCast(p.getValueAsObject())
-                ys = np.array([fn.calcValue(osim.Vector(1, float(x))) for x in xs])
-            return CurveTable(float(xs[0]), float(xs[1] - xs[0]), ys)
+            return CurveTable(float(xs[0]), float(xs[1] - xs[0]), curve_values(muscle, prop, xs))
 
         out[name] = SchutteMuscle(
             name, muscle.getMaxIsometricForce(), muscle.getOptimalFiberLength(), muscle.getTendonSlackLength(),
