@@ -84,7 +84,7 @@ def speed_bars(speed: dict):
 def overlay(times: np.ndarray, dofs: list[str], opensim: np.ndarray, mujoco: dict[str, np.ndarray], title: str = ""):
     """Joint trajectories (T, n_dofs) of one set: OpenSim against each labelled MuJoCo variant (rad)."""
     plt = _plt()
-    fig, axes = plt.subplots(1, len(dofs), figsize=(3 * len(dofs), 2.8), sharex=True)
+    fig, axes = plt.subplots(1, len(dofs), figsize=(3 * len(dofs), 3.4), sharex=True)
     for j, ax in enumerate(np.atleast_1d(axes)):
         ax.plot(times, opensim[:, j], "k", lw=2, label="OpenSim")
         for label, q in mujoco.items():
@@ -92,9 +92,11 @@ def overlay(times: np.ndarray, dofs: list[str], opensim: np.ndarray, mujoco: dic
         ax.set_title(dofs[j], fontsize=9)
         ax.set_xlabel("time (s)")
     np.atleast_1d(axes)[0].set_ylabel("angle (rad)")
-    np.atleast_1d(axes)[0].legend(fontsize=7)
+    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
+    # below the panels, where it hides no curve
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 5), fontsize=7, frameon=False)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.04 * (1 + (len(labels) - 1) // 5), 1, 1))
     return fig
 
 

@@ -115,11 +115,11 @@ def _reproduce(data: Path, out: Path, figures: Path, *, quick: bool, regenerate_
 
 def _stage_table(per_joint: dict[str, dict[str, float]], stages: dict[str, str]) -> list[str]:
     """Rows of DoF x stage errors (rad), with the mean over DoFs last."""
-    rows = [f"  {'DoF':15s}" + "".join(f"{h:>12s}" for h in stages.values())]
+    rows = [f"  {'DoF':15s}" + "".join(f"{h:>13s}" for h in stages.values())]
     for d, v in per_joint.items():
-        rows.append(f"  {d:15s}" + "".join(f"{v[k]:12.4f}" for k in stages))
+        rows.append(f"  {d:15s}" + "".join(f"{v[k]:13.4f}" for k in stages))
     mean = {k: sum(v[k] for v in per_joint.values()) / len(per_joint) for k in stages}
-    rows.append(f"  {'mean':15s}" + "".join(f"{mean[k]:12.4f}" for k in stages))
+    rows.append(f"  {'mean':15s}" + "".join(f"{mean[k]:13.4f}" for k in stages))
     return rows
 
 
@@ -149,9 +149,9 @@ def format_summary(run: PaperRun) -> str:
                                                              if k in fresh["mean_error_rad"]})
     uncorrected = [k for k in STAGES if "corrected" not in k]
     lines.append("Mean over DoFs and sets, per split (rad):")
-    lines.append(f"  {'split':15s}" + "".join(f"{STAGES[k]:>12s}" for k in uncorrected))
+    lines.append(f"  {'split':15s}" + "".join(f"{STAGES[k]:>13s}" for k in uncorrected))
     for split, v in s.get("split_error_rad", {}).items():
-        lines.append(f"  {split:15s}" + "".join(f"{v[k]:12.4f}" if k in v else f"{'':12s}" for k in uncorrected))
+        lines.append(f"  {split:15s}" + "".join(f"{v[k]:13.4f}" if k in v else f"{'':13s}" for k in uncorrected))
     mf = s["muscle_forces"]
     lines.append(
         f"Muscle force fit: RMS error {mf['rms_held_out_start']:.2f} -> {mf['rms_held_out']:.2f} % of max isometric "
