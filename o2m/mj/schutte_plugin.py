@@ -110,9 +110,23 @@ def _drop_key_activations(root: etree._Element, model: mujoco.MjModel, replaced:
             del key.attrib["act"]
 
 
+#: The smallest model with one ``o2m.schutte`` actuator: compiling it tells the plugin's slot.
+_PROBE = """<mujoco><extension><plugin plugin="o2m.schutte"/></extension><worldbody><site name="a"/>
+<body><joint type="slide"/><geom size="0.1"/><site name="b" pos="0 0 1"/></body></worldbody>
+<tendon><spatial name="t"><site site="a"/><site site="b"/></spatial></tendon>
+<actuator><plugin plugin="o2m.schutte" tendon="t">""" + "".join(
+    f'<config key="{k}" value="{v}"/>' for k, v in (
+        ("f0", 1), ("l0", 1), ("lts", 1), ("sina0", 0), ("time_scale", 0.1), ("activation1", 1), ("activation2", 1),
+        ("damping", 0.1), ("activation0", 0), ("fibre0", 1), ("tendon_curve", "0 1 0 1"),
+        ("active_curve", "0 1 1 1"), ("passive_curve", "0 1 0 0"))) + "</plugin></actuator></mujoco>"
+
+
 def schutte_actuators(model: mujoco.MjModel) -> dict[int, int]:
-    """``{actuator id: plugin instance id}`` of the ``o2m.schutte`` actuators of ``model``."""
-    return {a: int(model.actuator_plugin[a]) for a in range(model.nu) if model.actuator_plugin[a] >= 0}
+    """``{actuator id: plugin instance id}`` of the ``o2m.schutte`` actuators of ``model`` (the
+    plugin loaded)."""
+    slot = int(mujoco.MjModel.from_xml_string(_PROBE).plugin[0])
+    return {a: int(model.actuator_plugin[a]) for a in range(model.nu)
+            if model.actuator_plugin[a] >= 0 and model.plugin[model.actuator_plugin[a]] == slot}
 
 
 def schutte_state(model: mujoco.MjModel, plain: mujoco.MjModel, state: np.ndarray,
