@@ -432,7 +432,7 @@ test = exp.dataset.test[:3] if QUICK else exp.dataset.test
 stages = {"converted": (exp, exp.model), "paper: CMA-ES": (exp, paper_space.apply(exp.model, paper_fit.x)),
           "o2m: forces": (exp, fitted_forces), "o2m: + fibres": (fibre_exp, fibre_exp.model),
           "o2m: + CMA-ES": (fibre_exp, space.apply(fibre_exp.model, fit.x)),
-          "OpenSim muscles": (schutte_exp, schutte_exp.model)}
+          "o2m: OpenSim": (schutte_exp, schutte_exp.model)}
 errors = {k: np.nanmean(joint_mae(e, m, test)[0], axis=0) for k, (e, m) in stages.items()}
 print(f"{'DoF':15s}" + "".join(f"{k:>15s}" for k in errors) + "   (mean absolute error, rad)")
 for j, d in enumerate(exp.dofs):
@@ -482,8 +482,8 @@ res = fit_corrections(model, exp.init[i], exp.dataset.activations.values[i], exp
                       generations=budget.correction_generations, sweeps=budget.correction_sweeps, seed=0,
                       start=start)
 print(f"penalty weight {PENALTY}; cost {res.cost0:.4f} -> {res.cost:.4f}; {res.evaluations} simulated windows")
-print("mean absolute joint error (rad):", dict(zip(exp.dofs, res.joint_mae0.round(3))), "->",
-      dict(zip(exp.dofs, res.joint_mae.round(3))))
+print("mean absolute joint error (rad):", {d: round(float(e), 4) for d, e in zip(exp.dofs, res.joint_mae0)}, "->",
+      {d: round(float(e), 4) for d, e in zip(exp.dofs, res.joint_mae)})
 print(f"mean absolute correction: {np.abs(res.correction).mean():.4f}")'''),
     code('''
 import matplotlib.pyplot as plt
@@ -515,8 +515,8 @@ own = schutte_stage(load_experiment(DATA, OUT / "paper"))
 res_own = fit_corrections(own.model, own.init[i], own.dataset.activations.values[i], own.muscles, own.reference[i],
                           own.dofs, method=budget.correction_method, iterations=budget.correction_iterations,
                           generations=budget.correction_generations, sweeps=budget.correction_sweeps, seed=0)
-print("mean absolute joint error (rad):", dict(zip(own.dofs, res_own.joint_mae0.round(4))), "->",
-      dict(zip(own.dofs, res_own.joint_mae.round(4))))
+print("mean absolute joint error (rad):", {d: round(float(e), 4) for d, e in zip(own.dofs, res_own.joint_mae0)}, "->",
+      {d: round(float(e), 4) for d, e in zip(own.dofs, res_own.joint_mae)})
 print(f"mean absolute correction: {np.abs(res_own.correction).mean():.4f} (MuJoCo's fitted muscles: "
       f"{np.abs(res.correction).mean():.4f})")'''),
 ]
