@@ -16,8 +16,6 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import mujoco
-
 from o2m.errors import O2MError
 from o2m.mj.schutte_plugin import with_schutte_muscles
 from o2m.osim.schutte import default_states, muscle_types, schutte_muscles
@@ -43,7 +41,8 @@ def write_opensim_muscles(osim: str | os.PathLike[str], xml: str | os.PathLike[s
     """Write ``out`` (default ``<xml stem>_opensim_muscles.xml`` beside ``xml``, the conversion of
     ``osim``) with every muscle of a :data:`SUPPORTED` class an ``o2m.schutte`` actuator. The
     plugin must be loaded first (:func:`o2m.mj.schutte_plugin.load`). Raises :class:`O2MError`
-    when the model has no such muscle or ``xml`` has no actuator for one."""
+    when the model has no such muscle or ``xml`` has no actuator for one
+    (:func:`o2m.mj.schutte_plugin.with_schutte_muscles` says which)."""
     xml = Path(xml)
     out = Path(out) if out is not None else xml.with_name(xml.stem + "_opensim_muscles.xml")
     types = muscle_types(osim)
@@ -51,9 +50,5 @@ def write_opensim_muscles(osim: str | os.PathLike[str], xml: str | os.PathLike[s
     if not names:
         raise O2MError(f"{osim}: no muscle is one o2m runs as OpenSim's own ({', '.join(SUPPORTED)}); its muscles "
                        f"are {sorted(set(types.values())) or 'none'}")
-    model = mujoco.MjModel.from_xml_path(str(xml))
-    missing = [n for n in names if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n) < 0]
-    if missing:
-        raise O2MError(f"{xml} has no actuator for the muscles {missing} of {osim}")
     with_schutte_muscles(xml, out, schutte_muscles(osim, names), start=default_states(osim, names))
     return OpenSimMuscles(out, names, {n: t for n, t in types.items() if t not in SUPPORTED})

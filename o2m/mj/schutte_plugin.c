@@ -77,9 +77,7 @@ static double fibre_velocity(const Muscle* u, double a, double lf, double L) {
   double fv = ft / ca - value(&u->passive_fl, x);
   if (fv < 0) fv = 0;  // computeActuation clamps the velocity-dependent force at zero
   double v, b, c, af = a * fa;
-  if (fv < -d) {
-    v = fv / d;
-  } else if (fv < af) {
+  if (fv < af) {  // (calcFiberVelocity's branch for fv < -damping is unreachable: fv >= 0 here)
     c = KV * (fv - af) / d;
     b = -KV * (fv / KV + af + d) / d;
     v = (-b - sqrt(b * b - 4 * c)) / 2.0;
