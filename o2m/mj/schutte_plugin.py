@@ -131,21 +131,25 @@ def schutte_actuators(model: mujoco.MjModel) -> dict[int, int]:
 
 def schutte_state(model: mujoco.MjModel, plain: mujoco.MjModel, state: np.ndarray,
                   fibre_lengths: Mapping[str, float]) -> np.ndarray:
-    """``model``'s full physics state (nstate,) for a run that ``plain`` (the model before
-    :func:`with_schutte_muscles`) starts from ``state`` (its mjSTATE_FULLPHYSICS): the same time,
-    positions and velocities, each ``o2m.schutte`` actuator at the activation its namesake has in
-    ``state`` and at its ``fibre_lengths`` entry (m)."""
-    src = mujoco.MjData(plain)
-    mujoco.mj_setState(plain, src, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    data = mujoco.MjData(model)
-    data.time, data.qpos[:], data.qvel[:] = src.time, src.qpos, src.qvel
+    """``model``'s full physics state for a run that ``plain`` (the model before
+    :func:`with_schutte_muscles`) starts from ``state`` (its mjSTATE_FULLPHYSICS, (nstate,) or one
+    per run, (n, nstate)): the same time, positions and velocities, each ``o2m.schutte`` actuator
+    at the activation its namesake has in ``state`` and at its ``fibre_lengths`` entry (m).
+    Returns the same shape with ``model``'s nstate."""
+    states = np.atleast_2d(np.asarray(state, float))
+    src, data = mujoco.MjData(plain), mujoco.MjData(model)
+    starts = []  # (plugin state address, plain model's act address, fibre length) per actuator
     for a, instance in schutte_actuators(model).items():
         name = model.actuator(a).name
         if name not in fibre_lengths:
             raise O2MError(f"no initial fibre length for the {PLUGIN} actuator '{name}'")
-        pa = plain.actuator(name).id
-        adr = model.plugin_stateadr[instance]
-        data.plugin_state[adr:adr + 2] = src.act[plain.actuator_actadr[pa]], fibre_lengths[name]
-    out = np.zeros(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
-    mujoco.mj_getState(model, data, out, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    return out
+        starts.append((model.plugin_stateadr[instance], plain.actuator_actadr[plain.actuator(name).id],
+                       fibre_lengths[name]))
+    out = np.zeros((len(states), mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
+    for row, s in zip(out, states, strict=True):
+        mujoco.mj_setState(plain, src, s, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        data.time, data.qpos[:], data.qvel[:] = src.time, src.qpos, src.qvel
+        for adr, act, fibre in starts:
+            data.plugin_state[adr:adr + 2] = src.act[act], fibre
+        mujoco.mj_getState(model, data, row, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    return out if np.ndim(state) == 2 else out[0]

@@ -241,7 +241,7 @@ def run_paper(data_dir: str | os.PathLike[str] = DATA_DIR, *, settings: Settings
     fresh, fresh_sizes = {}, {}
     if fresh_exp:
         fresh_fibres = passive_fibre_stage(fresh_exp[0], forces_xml)
-        fresh_schutte = schutte_stage(fresh_exp[0])
+        fresh_schutte = schutte_stage(fresh_exp[0], like=schutte_exp)
         fresh_stage = {id(fibre_exp): fresh_fibres, id(schutte_exp): fresh_schutte}
         fresh = {name: joint_mae(fresh_stage.get(id(e), fresh_exp[0]), m, fresh_exp[1])[0]
                  for name, (e, m) in stage_runs.items()}
@@ -327,14 +327,15 @@ def passive_fibre_stage(exp: Experiment, forces_xml: Path) -> Experiment:
         raise O2MError(f"o2m's pipeline runs its passive fibres in the o2m.fibre MuJoCo plugin: {err}") from err
 
 
-def schutte_stage(exp: Experiment) -> Experiment:
+def schutte_stage(exp: Experiment, like: Experiment | None = None) -> Experiment:
     """o2m's Schutte stage on ``exp`` (:func:`o2m.paper.schutte_stage.schutte_experiment`): the
     converted model with each muscle OpenSim's own, the ``o2m.schutte`` plugin (built beside the
-    model). Raises :class:`O2MError` where the plugin cannot be built (no C compiler)."""
+    model); ``like``: that stage of another dataset of the same model, whose model it reuses.
+    Raises :class:`O2MError` where the plugin cannot be built (no C compiler)."""
     from o2m.paper.schutte_stage import schutte_experiment
 
     try:
-        return schutte_experiment(exp, exp.xml.parent)
+        return schutte_experiment(exp, exp.xml.parent, like)
     except O2MError as err:
         raise O2MError(f"o2m's pipeline runs OpenSim's muscles in the o2m.schutte MuJoCo plugin: {err}") from err
 

@@ -36,17 +36,21 @@ def schutte_xml(exp: Experiment) -> Path:
     return exp.xml.with_name(exp.xml.stem + "_schutte.xml")
 
 
-def schutte_experiment(exp: Experiment, plugin_folder: str | Path) -> Experiment:
+def schutte_experiment(exp: Experiment, plugin_folder: str | Path, like: Experiment | None = None) -> Experiment:
     """``exp`` for the converted model with each muscle an ``o2m.schutte`` actuator (the plugin
     built in ``plugin_folder``; :class:`o2m.errors.O2MError` without a C compiler), written to
-    :func:`schutte_xml`; each set's initial state (n_sets, nstate) has OpenSim's initial
-    activations (those of ``exp.init``) and fibre lengths (the dataset's initial state file)."""
+    :func:`schutte_xml`, or ``like``'s model and file when given (another dataset of the same
+    model: nothing is read or written again); each set's initial state (n_sets, nstate) has
+    OpenSim's initial activations (those of ``exp.init``) and fibre lengths (the dataset's initial
+    state file)."""
     load(plugin_folder)
-    muscles = schutte_muscles(models.fetch(exp.dataset.meta["model"]), exp.muscles)
-    xml = with_schutte_muscles(exp.xml, schutte_xml(exp), muscles)
-    model = mujoco.MjModel.from_xml_path(str(xml))
-    start = initial_fibre_lengths(exp)
+    if like is None:
+        muscles = schutte_muscles(models.fetch(exp.dataset.meta["model"]), exp.muscles)
+        xml = with_schutte_muscles(exp.xml, schutte_xml(exp), muscles)
+        model = mujoco.MjModel.from_xml_path(str(xml))
+    else:
+        xml, model = like.xml, like.model
     init = np.full((len(exp.init), mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)), np.nan)
-    for i in np.flatnonzero(np.isfinite(exp.init).all(axis=1)):
-        init[i] = schutte_state(model, exp.model, exp.init[i], start)
+    ran = np.flatnonzero(np.isfinite(exp.init).all(axis=1))
+    init[ran] = schutte_state(model, exp.model, exp.init[ran], initial_fibre_lengths(exp))
     return replace(exp, model=model, xml=xml, init=init)
