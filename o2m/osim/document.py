@@ -216,6 +216,11 @@ class OsimDocument:
 #: which is not an XML name: read as ``Outer__Inner`` (the document's lines stay where they are).
 _NESTED_TAG = re.compile(rb"<(/?)([A-Za-z_][\w.-]*)::(?=[A-Za-z_])")
 NESTED_SEPARATOR = "__"
+#: An XML comment as OpenSim's parser (TinyXML, in SimTK) reads one: from ``<!--`` to the first
+#: ``-->``, whatever it holds. XML forbids ``--`` inside a comment, so a commented-out line left
+#: inside another comment (osim-rl's ``ue_RL.osim``: ``<!--`` then ``<!--Markers in the model.-->``)
+#: stops a strict parser where OpenSim reads on.
+_COMMENT = re.compile(rb"<!--.*?-->", re.DOTALL)
 
 
 def parse_xml(path: Path) -> etree._ElementTree:
@@ -226,7 +231,7 @@ def parse_xml(path: Path) -> etree._ElementTree:
     if path.is_dir():
         raise ModelFileError(f"{path}: is a folder, expected an .osim file")
     try:
-        data = _NESTED_TAG.sub(rb"<\1\2" + NESTED_SEPARATOR.encode(), path.read_bytes())
+        data = _NESTED_TAG.sub(rb"<\1\2" + NESTED_SEPARATOR.encode(), _without_comments(path.read_bytes()))
         parser = etree.XMLParser(remove_blank_text=False, huge_tree=True)
         return etree.ElementTree(etree.fromstring(data, parser, base_url=str(path)))
     except etree.XMLSyntaxError as exc:
@@ -234,6 +239,12 @@ def parse_xml(path: Path) -> etree._ElementTree:
         raise ModelFileError(f"{path}:{line}: not well-formed XML: {exc.msg}") from None
     except OSError as exc:
         raise ModelFileError(f"{path}: cannot be read: {exc}") from None
+
+
+def _without_comments(data: bytes) -> bytes:
+    """``data`` with each comment (:data:`_COMMENT`) replaced by its line breaks, so that the
+    document's lines stay where they are."""
+    return _COMMENT.sub(lambda m: b"\n" * m.group().count(b"\n"), data)
 
 
 def _upgrade_with_opensim(path: Path) -> etree._ElementTree:

@@ -7,6 +7,7 @@ The documents are Tug_of_War (through the model registry) with one thing changed
 from __future__ import annotations
 
 import copy
+import re
 import time
 from pathlib import Path
 
@@ -169,3 +170,20 @@ def test_a_3x_document_with_several_plugin_classes_names_them_all(tmp_path):
         load_document(path)
     assert "PistonActuator (1), ControllableSpring (2)" in str(err.value)
     assert "CoordinateLimitForce" not in str(err.value).split("does not know")[-1]
+
+
+def test_a_comment_is_read_as_opensim_reads_it(tug, tmp_path):
+    """A comment ends at the first ``-->`` whatever it holds, ``--`` included, as OpenSim's
+    parser reads it (osim-rl's ue_RL.osim: a ``<!--`` left open before a one-line comment); the
+    lines after it keep their numbers in errors."""
+    i = tug.index("<BodySet")
+    commented = tug[:i] + "<!--\n\t\t<!--Bodies of the model.-->\n" + tug[i:]
+    plain, odd = _write(tmp_path, "plain", tug), _write(tmp_path, "odd", commented)
+    def text(path: Path) -> bytes:  # the document without its layout
+        return re.sub(rb"\s+", b"", etree.tostring(load_document(path).model))
+
+    assert text(odd) == text(plain)
+    broken = commented.replace("<BodySet", "<BodySet <", 1)
+    line = commented[:commented.index("<BodySet")].count("\n") + 1
+    with pytest.raises(ModelFileError, match=rf"broken.osim:{line}: not well-formed XML"):
+        load_document(_write(tmp_path, "broken", broken))
