@@ -13,7 +13,8 @@ segment's wraps are replaced by one moving via point ``V`` on the first point's 
   arcs) and the path's ``computeMomentArm`` less the rest of the path's ``-dL/dq``. ``T`` is the
   continuous length whose ``-dT/dq`` is nearest (least squares) to that moment arm while staying
   within ``p`` % of OpenSim's path length at every pose (bounded least squares,
-  :func:`scipy.optimize.lsq_linear`; OpenSim's one-pose length spikes are no target). ``p`` is the
+  :func:`scipy.optimize.lsq_linear`; OpenSim's one-pose length spikes and the poses where its path
+  fails, :func:`o2m.osim.spikes.path_failure`, are no target). ``p`` is the
   least that any continuous length can reach, half the largest step of OpenSim's segment length
   over the sweep (as :func:`o2m.validate_muscles.opensim_length_steps` finds them for the whole
   path), plus :data:`MARGIN_PCT`, and at least :data:`MIN_PCT`.
@@ -53,7 +54,7 @@ from o2m.osim.couplers import coupler_chain, set_coupled
 from o2m.osim.functions import PolynomialFunction
 from o2m.osim.names import opensim_coordinate
 from o2m.osim.paths import Path, PathPoint, WrapObject
-from o2m.osim.spikes import one_pose_spikes, outlying_changes
+from o2m.osim.spikes import one_pose_spikes, outlying_changes, path_failure
 from o2m.transforms import Transform
 
 #: Poses of the sweep over the coordinate (its range, evenly spaced).
@@ -172,27 +173,29 @@ def designed_correction(model, state, via: LengthVia) -> float:
 
 def _sweep(osim_path: str, path: Path, seg: int, cname: str, qs: np.ndarray) -> dict[str, np.ndarray]:
     """OpenSim over the sweep: the path's length, the segment's length, the path's
-    computeMomentArm about ``cname``, the second point in the first point's body frame, and the
-    points of the current path between the two (first point's body frame)."""
+    computeMomentArm about ``cname``, the second point in the first point's body frame, the
+    points of the current path between the two (first point's body frame), and whether OpenSim's
+    path fails there (:func:`o2m.osim.spikes.path_failure`)."""
     model, state = runtime.load_model(osim_path, 1e-12)
     coord = opensim_coordinate(model, cname)
     gp = runtime.geometry_path(model, path.owner)
     a, b = path.points[seg], path.points[seg + 1]
     couplers = coupler_chain(model, state)
-    total, part, arm, p2, bulge = [], [], [], [], []
+    total, part, arm, p2, bulge, failed = [], [], [], [], [], []
     for q in qs:
         coord.setValue(state, float(q), couplers is None)  # coupled coordinates follow it
         if couplers is not None:
             set_coupled(couplers, state)
         model.realizePosition(state)
         total.append(gp.getLength(state))
+        failed.append(path_failure(model, state, path.owner) is not None)
         arm.append(gp.computeMomentArm(state, coord))
         length, local = segment(model, gp, state, a.name, b.name, a.body)
         part.append(length)
         p2.append(local[-1])
         bulge.append(local[:-1])
     return {"total": np.array(total), "part": np.array(part), "arm": np.array(arm), "p2": np.array(p2),
-            "bulge": bulge}
+            "bulge": bulge, "failed": np.array(failed, dtype=bool)}
 
 
 def _frame_path(model, body: str) -> str:
@@ -264,7 +267,10 @@ def design(osim_path: str, builder: MjcfBuilder, path: Path, seg: int, cname: st
 
     d = np.diff(s["part"])
     odd = outlying_changes(d)
-    spike = one_pose_spikes(d, odd)
+    # OpenSim's failing paths (a detour past a path point, a loop, a winding) are no target
+    # either: osim-rl's MoBL-ARMS variant's ECRL, its wrist torus acting on the elbow segment,
+    # runs 0.9 m where its path is 0.33 m, which set a 32 % "step" tolerance
+    spike = one_pose_spikes(d, odd) | s["failed"]
     spiky = spike[:-1] | spike[1:]
     steps = [float(x) for x, o, sp in zip(d, odd, spiky, strict=True) if o and not sp]
     floor = max((100.0 * abs(d[k]) / 2.0 / float(max(s["total"][k], s["total"][k + 1]))
@@ -297,7 +303,7 @@ def design(osim_path: str, builder: MjcfBuilder, path: Path, seg: int, cname: st
 
     basis = np.vander(qs, 5)  # V's location: a quartic of q per axis (a MuJoCo joint equality, exactly)
     via = _ViaFit(basis, p1, s["p2"], s["part"], tol / 100 * s["total"], arm_mid, h, spike, spiky)
-    x0 = np.linalg.lstsq(basis, start, rcond=None)[0].ravel()
+    x0 = np.linalg.lstsq(basis[~spike], start[~spike], rcond=None)[0].ravel()  # spikes' targets are free
     rng = np.random.default_rng(0)
     best = None
     # one BLAS thread: thousands of SVDs of a (3 SWEEP_POSES, 15) Jacobian, 25 times faster than

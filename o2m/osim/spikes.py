@@ -21,7 +21,8 @@ __all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_
            "LOOP_KINDS", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "arc_turn", "band_suspects",
            "current_path_points", "drawn_length", "one_pose_spikes", "opensim_detours", "opensim_failures",
            "opensim_inconsistencies", "opensim_loops", "opensim_spikes", "opensim_windings", "outlying_changes",
-           "path_detour", "path_loop", "path_winding", "runs_cross", "wrap_arcs", "wrap_contacts", "wrap_runs"]
+           "path_detour", "path_failure", "path_loop", "path_winding", "runs_cross", "wrap_arcs", "wrap_contacts",
+           "wrap_runs"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -376,6 +377,24 @@ def opensim_inconsistencies(pair: ModelPair, values: Mapping[str, float], muscle
         if abs(drawn - length) > BAND_FRACTION * abs(length):
             out[int(i)] = {"test": "inconsistent", "length": length, "drawn": drawn}
     return out
+
+
+def path_failure(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:
+    """How OpenSim's path of the path force ``name`` in realised ``state`` fails as a path, the
+    tests of :func:`opensim_failures` that look at the path it draws: {"test": "detour" | "loop" |
+    "winding", and what the test found}, or None. A length that is not that of its drawn path is
+    left to :func:`opensim_inconsistencies`: it can still be continuous with its neighbours'
+    (Arm26's TRIlong over its two wraps, drawn 8 % longer at shoulder elevation 1.96-2.03 rad)."""
+    found = path_detour(current_path_points(os_model, state, name))
+    if found is not None:
+        return {"test": "detour", **found}
+    found = path_loop(wrap_runs(os_model, state, name))
+    if found is not None:
+        return {"test": "loop", **found}
+    found = path_winding(wrap_arcs(os_model, state, name))
+    if found is not None:
+        return {"test": "winding", **found}
+    return None
 
 
 def opensim_failures(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
