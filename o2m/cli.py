@@ -59,7 +59,10 @@ def cmd_convert(a: argparse.Namespace) -> int:
         print(f"wrote {own.xml}: {len(own.muscles)} muscles are OpenSim's own (the o2m.schutte plugin, {lib}; "
               "load it with o2m.mj.schutte_plugin.load before opening the file)"
               + (f"; {len(own.kept)} stay MuJoCo muscles ({', '.join(sorted(set(own.kept.values())))})"
-                 if own.kept else ""))
+                 if own.kept else "")
+              + (f"; {len(own.disabled)} that OpenSim disables stay disabled MuJoCo muscles" if own.disabled else "")
+              + (f"; {len(own.equilibrated)} start at their static equilibrium, where OpenSim's left no fibre: "
+                 f"{', '.join(sorted(own.equilibrated))}" if own.equilibrated else ""))
     if a.moment_arm_plots:
         pdf = result.xml.with_suffix(".moment_arms.pdf")
         rows = moment_arm_report(osim, result.xml, pdf, n=21 if quick else 41,

@@ -100,6 +100,34 @@ class SchutteMuscle:
             v = (-b + np.sqrt(b * b - 4 * c)) / 2
         return float(v) * self.optimal_fiber_length / self.time_scale
 
+    def equilibrium(self, activation: float, mtu_length: float) -> float:
+        """The fibre length (m) at which the tendon of a unit ``mtu_length`` long (m) pulls as the
+        fibres at rest do, ``activation`` times the active curve plus the passive one, along the
+        tendon (``computeIsometricForce``'s static equilibrium); the muscle's width where the unit is
+        shorter than its tendon's slack length (its fibres then vertical, as OpenSim sets them)."""
+        from scipy.optimize import brentq
+
+        width = self.optimal_fiber_length * np.sin(self.pennation_angle_at_optimal)
+        slack = mtu_length - self.tendon_slack_length  # along the tendon, fibres at rest
+        if slack <= 0.0:
+            return float(max(width, 1e-9 * self.optimal_fiber_length))
+
+        def residual(x: float) -> float:
+            n = x / self.optimal_fiber_length
+            fibre = activation * max(float(self.active(n)), 0.0) + float(self.passive(n))
+            cos = float(self.cos_pennation(x))
+            return float(self.tendon_force(mtu_length, x)) - self.max_isometric_force * fibre * cos
+
+        # the tendon is slack where the fibres span the rest, and stretched as they shorten from
+        # there; fibres that pull nothing there (a passive curve at or below zero) rest there
+        hi = float(np.hypot(slack, width))
+        if residual(hi) >= 0.0:
+            return hi
+        lo = max(width, 1e-6 * self.optimal_fiber_length)
+        while residual(lo) < 0.0 and lo > 1e-12:
+            lo /= 2.0
+        return float(brentq(residual, lo, hi, xtol=1e-15, rtol=1e-14)) if residual(lo) > 0.0 else hi
+
     def step(self, activation: float, fibre_length: float, excitation: float, mtu_length_end: float,
              timestep: float) -> tuple[float, float]:
         """The state (activation, fibre length m) one ``timestep`` (s) later, as the plugin steps it:
@@ -169,16 +197,17 @@ def schutte_muscles(osim_path: str | os.PathLike[str], names: list[str]) -> dict
     return out
 
 
-def default_states(osim_path: str | os.PathLike[str], names: list[str]) -> dict[str, tuple[float, float]]:
-    """``{muscle: (activation, fibre length m)}`` in the model's default state with its muscles in
-    equilibrium (``equilibrateMuscles``), as OpenSim starts a simulation of it."""
+def default_states(osim_path: str | os.PathLike[str], names: list[str]) -> dict[str, tuple[float, float, float]]:
+    """``{muscle: (activation, fibre length m, muscle-tendon length m)}`` in the model's default
+    state with its muscles in equilibrium (``equilibrateMuscles``), as OpenSim starts a
+    simulation of it."""
     osim = runtime.opensim()
     model = osim.Model(str(osim_path))
     state = model.initSystem()
     model.equilibrateMuscles(state)
     muscles = model.getMuscles()
-    return {n: (float(muscles.get(n).getActivation(state)), float(muscles.get(n).getFiberLength(state)))
-            for n in names}
+    return {n: (float(muscles.get(n).getActivation(state)), float(muscles.get(n).getFiberLength(state)),
+                float(muscles.get(n).getLength(state))) for n in names}
 
 
 def muscle_types(osim_path: str | os.PathLike[str]) -> dict[str, str]:

@@ -8,6 +8,7 @@ import mujoco
 import opensim as osim
 import pytest
 
+from o2m.convert import opensim_muscles
 from o2m.convert.opensim_muscles import write_opensim_muscles
 from o2m.errors import O2MError
 from o2m.mj import schutte_plugin
@@ -54,3 +55,36 @@ def test_a_model_without_schutte_muscles_is_an_error(bundled_conversion):
     fetched, conv = bundled_conversion("arm26")
     with pytest.raises(O2MError, match="no muscle is one o2m runs as OpenSim's own"):
         write_opensim_muscles(fetched.osim, conv.xml)
+
+
+def test_a_disabled_muscle_stays_a_disabled_mujoco_muscle(bundled_conversion, tmp_path, monkeypatch):
+    """A muscle in an actuator group the model disables (where the converter puts a muscle OpenSim
+    disables) is no plugin: MuJoCo 4.0 applies a plugin actuator's force whatever its group, and
+    OpenSim leaves a disabled muscle's state unequilibrated (fibre length 0), where the plugin's
+    tendon would pull with tens of max isometric forces. A muscle whose default fibre length
+    OpenSim leaves at 0 starts at its static equilibrium."""
+    fetched, conv = bundled_conversion("mobl_arms_no_wrap")
+    folder = tmp_path / "model"
+    shutil.copytree(conv.xml.parent, folder)
+    xml = folder / conv.xml.name
+    text = xml.read_text().replace('<general name="DELT2" ', '<general name="DELT2" group="5" ', 1)
+    xml.write_text(text.replace("<option ", '<option actuatorgroupdisable="5" ', 1))
+    schutte_plugin.load(tmp_path)
+    states = opensim_muscles.default_states
+
+    def without_bic_fibre(osim_path, names):
+        out = states(osim_path, names)
+        return {**out, "BIClong": (*out["BIClong"][:1], 0.0, out["BIClong"][2])}
+
+    monkeypatch.setattr(opensim_muscles, "default_states", without_bic_fibre)
+    own = write_opensim_muscles(fetched.osim, xml)
+    assert own.disabled == ["DELT2"] and "DELT2" not in own.muscles and len(own.muscles) == 49
+    assert set(own.equilibrated) == {"BIClong"}
+    fibre = states(fetched.osim, ["BIClong"])["BIClong"][1]
+    assert own.equilibrated["BIClong"] == pytest.approx(fibre, abs=1e-6)
+    model = mujoco.MjModel.from_xml_path(str(own.xml))
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("default-pose").id)
+    data.ctrl[:] = 1.0
+    mujoco.mj_forward(model, data)
+    assert data.actuator_force[model.actuator("DELT2").id] == 0.0

@@ -8,7 +8,7 @@ import pytest
 
 from o2m import models
 from o2m.errors import O2MError
-from o2m.osim.schutte import schutte_muscles
+from o2m.osim.schutte import default_states, muscle_types, schutte_muscles
 from o2m.osim.simulate import read_initial_state
 from o2m.paper.dataset import load_dataset
 from tests.helpers import require_models
@@ -68,3 +68,21 @@ def test_only_schutte_muscles_are_read(tmp_path):
     path = models.fetch_model("opensim-models/Models/Arm26/arm26.osim", progress=False)
     with pytest.raises(O2MError, match="not a Schutte1993Muscle_Deprecated"):
         schutte_muscles(path, ["BIClong"])
+
+
+def test_the_static_equilibrium_is_opensims():
+    """Every MoBL-ARMS muscle's static equilibrium at the default pose is the fibre length OpenSim's
+    ``equilibrateMuscles`` finds, to its own tolerance (``computeIsometricForce`` stops within
+    0.01 N); a unit shorter than its tendon's slack length rests at the muscle's width."""
+    require_models()
+    path = models.fetch("mobl-arms/MoBL_ARMS_model_for_testing_opensim_no_wrap.osim")
+    names = list(muscle_types(path))
+    muscles = schutte_muscles(path, names)
+    for name, (activation, fibre, length) in default_states(path, names).items():
+        m = muscles[name]
+        ours = m.equilibrium(activation, length)
+        assert abs(ours - fibre) < 1e-5 * m.optimal_fiber_length, name
+        assert abs(float(m.tendon_force(length, ours)) - float(m.tendon_force(length, fibre))) < 0.01, name
+    m = muscles["DELT1"]
+    width = m.optimal_fiber_length * np.sin(m.pennation_angle_at_optimal)
+    assert m.equilibrium(0.5, 0.9 * m.tendon_slack_length) == pytest.approx(width)
