@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 __all__ = ["OFF", "PLUGIN", "build", "fibre_instances", "fibre_state", "instance_name", "load", "with_fibres"]
 
 PLUGIN = "o2m.fibre"
-SOURCE = Path(__file__).with_name("fibre_plugin.c")
+SOURCE = plugins.SOURCES[PLUGIN]
 #: The equilibrium table spans the actuator's lengthrange widened by this much (m) on each side.
 TABLE_MARGIN = 0.05
 TABLE_POINTS = 600

@@ -15,7 +15,11 @@ import mujoco
 
 from o2m.errors import O2MError
 
-__all__ = ["build", "load"]
+__all__ = ["SOURCES", "build", "load", "load_used"]
+
+#: o2m's plugins by the name an MJCF file gives them, and their C sources.
+SOURCES = {"o2m.fibre": Path(__file__).with_name("fibre_plugin.c"),
+           "o2m.schutte": Path(__file__).with_name("schutte_plugin.c")}
 
 
 def build(source: str | Path, folder: str | Path) -> Path:
@@ -50,3 +54,14 @@ def load(source: str | Path, folder: str | Path) -> Path:
         if "already registered" not in str(err):
             raise
     return lib
+
+
+def load_used(mjcf_path: str | Path) -> list[Path]:
+    """Load each of o2m's plugins (:data:`SOURCES`) that the MJCF file ``mjcf_path`` names in its
+    ``<extension>``, built in the file's folder (where ``convert --opensim-muscles`` and the paper's
+    pipeline build them); returns their libraries."""
+    from lxml import etree
+
+    root = etree.parse(str(mjcf_path)).getroot()
+    names = {p.get("plugin") for ext in root.iter("extension") for p in ext.iter("plugin")}
+    return [load(SOURCES[n], Path(mjcf_path).parent) for n in sorted(names & set(SOURCES))]

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 from o2m.errors import ValidationError
+from o2m.mj.plugins import load_used
 
 __all__ = [
     "JointEquality",
@@ -181,11 +182,13 @@ def equality_residual(model: mujoco.MjModel, data: mujoco.MjData, names: Sequenc
 
 
 def load_mjcf(mjcf_path: str | os.PathLike) -> mujoco.MjModel:
-    """A converted model from its MJCF file; :class:`~o2m.errors.ValidationError` if it does not load."""
+    """A converted model from its MJCF file, o2m's plugins it uses loaded first
+    (:func:`o2m.mj.plugins.load_used`); :class:`~o2m.errors.ValidationError` if it does not load."""
     mjcf_path = os.fspath(mjcf_path)
     if not os.path.isfile(mjcf_path):
         raise ValidationError(f"{mjcf_path}: no such file")
     try:
+        load_used(mjcf_path)
         return mujoco.MjModel.from_xml_path(mjcf_path)
     except ValueError as exc:
         raise ValidationError(f"{mjcf_path}: MuJoCo could not load the model: {exc}") from exc

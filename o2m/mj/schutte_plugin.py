@@ -13,7 +13,7 @@ same. Compiled at first use (:mod:`o2m.mj.plugins`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -27,10 +27,10 @@ from o2m.mj import plugins
 if TYPE_CHECKING:
     from o2m.osim.schutte import SchutteMuscle
 
-__all__ = ["PLUGIN", "load", "schutte_actuators", "schutte_state", "with_schutte_muscles"]
+__all__ = ["PLUGIN", "load", "schutte_actuators", "schutte_state", "with_schutte_muscles", "with_schutte_starts"]
 
 PLUGIN = "o2m.schutte"
-SOURCE = Path(__file__).with_name("schutte_plugin.c")
+SOURCE = plugins.SOURCES[PLUGIN]
 
 
 def load(folder: str | Path) -> Path:
@@ -124,7 +124,12 @@ _PROBE = """<mujoco><extension><plugin plugin="o2m.schutte"/></extension><worldb
 def schutte_actuators(model: mujoco.MjModel) -> dict[int, int]:
     """``{actuator id: plugin instance id}`` of the ``o2m.schutte`` actuators of ``model`` (the
     plugin loaded)."""
-    slot = int(mujoco.MjModel.from_xml_string(_PROBE).plugin[0])
+    if not model.nplugin:
+        return {}
+    try:
+        slot = int(mujoco.MjModel.from_xml_string(_PROBE).plugin[0])
+    except ValueError:  # the plugin is not loaded, so no model in this process has its actuators
+        return {}
     return {a: int(model.actuator_plugin[a]) for a in range(model.nu)
             if model.actuator_plugin[a] >= 0 and model.plugin[model.actuator_plugin[a]] == slot}
 
@@ -153,3 +158,20 @@ def schutte_state(model: mujoco.MjModel, plain: mujoco.MjModel, state: np.ndarra
             data.plugin_state[adr:adr + 2] = src.act[act], fibre
         mujoco.mj_getState(model, data, row, mujoco.mjtState.mjSTATE_FULLPHYSICS)
     return out if np.ndim(state) == 2 else out[0]
+
+
+def with_schutte_starts(model: mujoco.MjModel, states: np.ndarray,
+                        starts: Sequence[Mapping[str, tuple[float, float]]]) -> np.ndarray:
+    """``states`` (``model``'s mjSTATE_FULLPHYSICS, (n, nstate)) with each ``o2m.schutte``
+    actuator of run k at ``starts[k][name]``, (activation, fibre length m); an actuator a run does
+    not name keeps its state."""
+    data = mujoco.MjData(model)
+    out = np.array(states, dtype=float, copy=True)
+    plugged = {model.actuator(a).name: int(model.plugin_stateadr[i]) for a, i in schutte_actuators(model).items()}
+    for row, start in zip(out, starts, strict=True):
+        mujoco.mj_setState(model, data, row, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        for name, adr in plugged.items():
+            if name in start:
+                data.plugin_state[adr:adr + 2] = start[name]
+        mujoco.mj_getState(model, data, row, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    return out

@@ -64,6 +64,8 @@ class OpenSimRun:
         tendon_forces: muscle tendon forces, shape (T, n_muscles), N (positive when pulling);
             NaN after a failure (and in runs stored before o2m recorded them).
         coordinate_names, muscle_names: column labels.
+        initial_fibre_lengths: each muscle's fibre length at the first sample, shape
+            (n_muscles,), m (empty in runs stored before o2m recorded them).
         t_reached: last time reached, seconds.
         wall_time: wall-clock seconds the run took (loading the model included).
         integration_time: wall-clock seconds spent integrating (from the Manager's start).
@@ -81,6 +83,7 @@ class OpenSimRun:
     t_reached: float = 0.0
     wall_time: float = 0.0
     integration_time: float = 0.0
+    initial_fibre_lengths: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def ok(self) -> bool:
@@ -91,7 +94,7 @@ class OpenSimRun:
                  speeds=self.speeds, activations=self.activations, tendon_forces=self.tendon_forces,
                  coordinate_names=np.array(self.coordinate_names),
                  muscle_names=np.array(self.muscle_names), t_reached=self.t_reached, wall_time=self.wall_time,
-                 integration_time=self.integration_time)
+                 integration_time=self.integration_time, initial_fibre_lengths=self.initial_fibre_lengths)
 
     @classmethod
     def from_npz(cls, path: str | os.PathLike[str]) -> OpenSimRun:
@@ -100,7 +103,8 @@ class OpenSimRun:
             return cls(str(z["status"]), str(z["reason"]), z["times"], z["coordinates"], z["speeds"],
                        z["activations"], forces, [str(s) for s in z["coordinate_names"]],
                        [str(s) for s in z["muscle_names"]], float(z["t_reached"]), float(z["wall_time"]),
-                       float(z["integration_time"]) if "integration_time" in z.files else float("nan"))
+                       float(z["integration_time"]) if "integration_time" in z.files else float("nan"),
+                       z["initial_fibre_lengths"] if "initial_fibre_lengths" in z.files else np.zeros(0))
 
     @classmethod
     def empty(cls, status: str, reason: str, times: np.ndarray, n_coordinates: int = 0, n_muscles: int = 0,
@@ -271,9 +275,10 @@ def simulate(osim_path: str | os.PathLike[str], times: np.ndarray, excitations: 
     def result(status: str, reason: str, t_reached: float) -> OpenSimRun:
         now = time.perf_counter()
         return OpenSimRun(status, reason, times, q, u, act, force, coord_names, muscle_names, t_reached, now - t0,
-                          now - t_integrate[0])
+                          now - t_integrate[0], fibres)
 
     model.realizeDynamics(state)
+    fibres = np.array([_fibre_length(m, state) for m in muscle_objs], dtype=float)
     if not record(0, state):
         return result("nan", f"non-finite initial state at t={times[0]:g} s", float(times[0]))
     manager = osim.Manager(model)
@@ -355,6 +360,14 @@ def run_isolated(osim_path: str | os.PathLike[str], times: np.ndarray, excitatio
             return OpenSimRun.empty("failed", f"worker exited with status {proc.returncode}: {' | '.join(tail)}",
                                     times, wall_time=time.perf_counter() - t0)
         return OpenSimRun.from_npz(out)
+
+
+def _fibre_length(muscle, state) -> float:
+    """A muscle's fibre length (m) in a realised ``state``; NaN where its class has none."""
+    try:
+        return float(muscle.getFiberLength(state))
+    except Exception:  # OpenSim raises RuntimeError subclasses
+        return float("nan")
 
 
 def tendon_force(muscle, state) -> float:

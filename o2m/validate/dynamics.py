@@ -32,6 +32,7 @@ import numpy as np
 from o2m.activations import generate_activations
 from o2m.errors import ValidationError
 from o2m.mj.posing import load_mjcf
+from o2m.mj.schutte_plugin import schutte_actuators, with_schutte_starts
 from o2m.mj.simulate import controls_from_excitations, initial_state, rollout
 from o2m.osim.simulate import IntegratorSettings, ModelOutline, OpenSimRun, model_outline, run_many
 from o2m.osim.storage import read_sto
@@ -351,6 +352,8 @@ def compare_dynamics(osim_path: str | os.PathLike[str], mjcf_path: str | os.Path
     keep = [exc.muscles.index(m) for m in driven]
     controls = controls_from_excitations(model, driven, exc.values[:, :, keep])
     starts = np.stack([_mujoco_start(model, run, outline, exc.times[0], start) for run in runs])
+    if schutte_actuators(model):  # OpenSim's own muscles (convert --opensim-muscles): OpenSim's start
+        starts = with_schutte_starts(model, starts, [_muscle_starts(run) for run in runs])
     traj = rollout(model, starts, controls, joint_names=names, nthread=max_workers)
     mj = traj.coordinates.copy()
     mj[traj.diverged] = np.nan
@@ -365,6 +368,15 @@ def compare_dynamics(osim_path: str | os.PathLike[str], mjcf_path: str | os.Path
                           [r.status for r in runs], [r.reason for r in runs], traj.diverged.copy(),
                           [m for m in outline.muscles if m not in actuators], [r.wall_time for r in runs],
                           np.array([outline.ranges[n] for n in names], float), flips, at_failures, driven)
+
+
+def _muscle_starts(run: OpenSimRun) -> dict[str, tuple[float, float]]:
+    """Each muscle's (activation, fibre length m) at the run's first sample, where it has both."""
+    if not len(run.initial_fibre_lengths) or not run.muscle_names:
+        return {}
+    return {m: (float(a), float(f)) for m, a, f in zip(run.muscle_names, run.activations[0],
+                                                       run.initial_fibre_lengths, strict=True)
+            if np.isfinite(a) and np.isfinite(f) and f > 0}
 
 
 def _opensim_columns(run: OpenSimRun, names: Sequence[str]) -> np.ndarray:
