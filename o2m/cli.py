@@ -61,8 +61,9 @@ def cmd_convert(a: argparse.Namespace) -> int:
               + (f"; {len(own.kept)} stay MuJoCo muscles ({', '.join(sorted(set(own.kept.values())))})"
                  if own.kept else "")
               + (f"; {len(own.disabled)} that OpenSim disables stay disabled MuJoCo muscles" if own.disabled else "")
-              + (f"; {len(own.equilibrated)} start at their static equilibrium, where OpenSim's left no fibre: "
-                 f"{', '.join(sorted(own.equilibrated))}" if own.equilibrated else ""))
+              + (f"; {len(own.offsets)} tendons are not OpenSim's length at the default pose (up to "
+                 f"{1e3 * max(map(abs, own.offsets.values())):.3g} mm), their fibres start in equilibrium on MuJoCo's"
+                 if own.offsets else ""))
     if a.moment_arm_plots:
         pdf = result.xml.with_suffix(".moment_arms.pdf")
         rows = moment_arm_report(osim, result.xml, pdf, n=21 if quick else 41,

@@ -5,9 +5,9 @@
 one, ``<stem>_opensim_muscles.xml``, in which each Schutte1993Muscle_Deprecated is OpenSim's
 muscle itself (:mod:`o2m.mj.schutte_plugin`: elastic tendon, activation and fibre length as the
 plugin's state, each muscle's own parameters and curves), started where OpenSim starts a
-simulation of the model (its default state, muscles in equilibrium; a muscle whose equilibrium
-OpenSim leaves at fibre length 0, where its tendon would take the whole unit's length in the
-plugin, at its static equilibrium instead, :meth:`o2m.osim.schutte.SchutteMuscle.equilibrium`). Muscles
+simulation of the model: its default state, muscles in static equilibrium
+(:meth:`o2m.osim.schutte.SchutteMuscle.equilibrium`, OpenSim's ``computeIsometricForce``) on the
+tendons MuJoCo has there, which are OpenSim's lengths but where a path is approximate. Muscles
 OpenSim disables stay the conversion's disabled MuJoCo muscles, and muscles of other types stay
 MuJoCo muscles, listed in the result. Opening the file needs o2m's plugin loaded:
 ``o2m.mj.schutte_plugin.load(folder)`` (compiled there with the machine's C compiler).
@@ -25,8 +25,11 @@ from o2m.errors import O2MError
 from o2m.mj.schutte_plugin import with_schutte_muscles
 from o2m.osim.schutte import default_states, muscle_types, schutte_muscles
 
-__all__ = ["OpenSimMuscles", "SUPPORTED", "disabled_actuators", "write_opensim_muscles"]
+__all__ = ["LENGTH_TOLERANCE", "OpenSimMuscles", "SUPPORTED", "default_lengths", "disabled_actuators",
+           "write_opensim_muscles"]
 
+#: A tendon further than this (m) from OpenSim's length at the default pose is reported.
+LENGTH_TOLERANCE = 1e-4
 #: The OpenSim muscle classes o2m can run as themselves in MuJoCo.
 SUPPORTED = ("Schutte1993Muscle_Deprecated",)
 
@@ -42,9 +45,10 @@ class OpenSimMuscles:
     #: muscles OpenSim disables (``appliesForce`` false), left as the conversion's MuJoCo muscles
     #: in its disabled actuator group: MuJoCo 4.0 applies a plugin actuator's force whatever its group
     disabled: list[str] = field(default_factory=list)
-    #: muscles whose equilibrium OpenSim leaves at a fibre length of 0, started instead at their
-    #: static equilibrium: {name: fibre length m}
-    equilibrated: dict[str, float] = field(default_factory=dict)
+    #: the muscles whose MuJoCo tendon at the default pose is not OpenSim's length, by how much
+    #: (m, MuJoCo minus OpenSim; over :data:`LENGTH_TOLERANCE`): their fibres start at the
+    #: equilibrium on MuJoCo's length, not at OpenSim's fibre length
+    offsets: dict[str, float] = field(default_factory=dict)
 
 
 def write_opensim_muscles(osim: str | os.PathLike[str], xml: str | os.PathLike[str],
@@ -66,13 +70,28 @@ def write_opensim_muscles(osim: str | os.PathLike[str], xml: str | os.PathLike[s
     if not names:
         raise O2MError(f"{osim}: every {', '.join(SUPPORTED)} muscle is disabled (appliesForce false)")
     muscles = schutte_muscles(osim, names)
-    start, equilibrated = {}, {}
-    for name, (activation, fibre, length) in default_states(osim, names).items():
-        if not fibre > 0.0:  # no fibre: a pennation of 0 over 0, which OpenSim's muscle never leaves
-            fibre = equilibrated[name] = muscles[name].equilibrium(activation, length)
-        start[name] = (activation, fibre)
+    lengths = default_lengths(xml, names)
+    start, offsets = {}, {}
+    for name, (activation, _, length) in default_states(osim, names).items():
+        # in equilibrium on the tendon MuJoCo has (OpenSim's fibre length where it is OpenSim's
+        # length, to 5e-8 m): a stiff tendon turns a path's millimetres into a start at many
+        # times the muscle's force (a wrapped MoBL-ARMS's LAT1, 500 N at rest)
+        start[name] = (activation, muscles[name].equilibrium(activation, lengths[name]))
+        if abs(lengths[name] - length) > LENGTH_TOLERANCE:
+            offsets[name] = lengths[name] - length
     with_schutte_muscles(xml, out, muscles, start=start)
-    return OpenSimMuscles(out, names, {n: t for n, t in types.items() if t not in SUPPORTED}, disabled, equilibrated)
+    return OpenSimMuscles(out, names, {n: t for n, t in types.items() if t not in SUPPORTED}, disabled, offsets)
+
+
+def default_lengths(xml: str | os.PathLike[str], names: list[str]) -> dict[str, float]:
+    """The length (m) of each actuator ``names`` of the MJCF ``xml`` at its first keyframe (the
+    converter's ``default-pose``: OpenSim's default pose)."""
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    data = mujoco.MjData(model)
+    if model.nkey:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_forward(model, data)
+    return {n: float(data.actuator_length[model.actuator(n).id]) for n in names}
 
 
 def disabled_actuators(xml: str | os.PathLike[str]) -> set[str]:
