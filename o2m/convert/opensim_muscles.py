@@ -65,12 +65,13 @@ def write_opensim_muscles(osim: str | os.PathLike[str], xml: str | os.PathLike[s
     if not names:
         raise O2MError(f"{osim}: no muscle is one o2m runs as OpenSim's own ({', '.join(SUPPORTED)}); its muscles "
                        f"are {sorted(set(types.values())) or 'none'}")
-    disabled = sorted(set(names) & disabled_actuators(xml))
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    disabled = sorted(set(names) & disabled_actuators(model))
     names = [n for n in names if n not in disabled]
     if not names:
         raise O2MError(f"{osim}: every {', '.join(SUPPORTED)} muscle is disabled (appliesForce false)")
     muscles = schutte_muscles(osim, names)
-    lengths = default_lengths(xml, names)
+    lengths = default_lengths(model, names)
     start, offsets = {}, {}
     for name, (activation, _, length) in default_states(osim, names).items():
         # in equilibrium on the tendon MuJoCo has (OpenSim's fibre length where it is OpenSim's
@@ -83,10 +84,9 @@ def write_opensim_muscles(osim: str | os.PathLike[str], xml: str | os.PathLike[s
     return OpenSimMuscles(out, names, {n: t for n, t in types.items() if t not in SUPPORTED}, disabled, offsets)
 
 
-def default_lengths(xml: str | os.PathLike[str], names: list[str]) -> dict[str, float]:
-    """The length (m) of each actuator ``names`` of the MJCF ``xml`` at its first keyframe (the
+def default_lengths(model: mujoco.MjModel, names: list[str]) -> dict[str, float]:
+    """The length (m) of each actuator ``names`` of ``model`` at its first keyframe (the
     converter's ``default-pose``: OpenSim's default pose)."""
-    model = mujoco.MjModel.from_xml_path(str(xml))
     data = mujoco.MjData(model)
     if model.nkey:
         mujoco.mj_resetDataKeyframe(model, data, 0)
@@ -94,8 +94,7 @@ def default_lengths(xml: str | os.PathLike[str], names: list[str]) -> dict[str, 
     return {n: float(data.actuator_length[model.actuator(n).id]) for n in names}
 
 
-def disabled_actuators(xml: str | os.PathLike[str]) -> set[str]:
-    """The actuators of the MJCF ``xml`` in a group its ``actuatorgroupdisable`` option disables."""
-    model = mujoco.MjModel.from_xml_path(str(xml))
+def disabled_actuators(model: mujoco.MjModel) -> set[str]:
+    """The actuators of ``model`` in a group its ``actuatorgroupdisable`` option disables."""
     return {model.actuator(a).name for a in range(model.nu)
             if 0 <= model.actuator_group[a] < 31 and model.opt.disableactuator & (1 << int(model.actuator_group[a]))}

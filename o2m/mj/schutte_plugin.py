@@ -143,20 +143,19 @@ def schutte_state(model: mujoco.MjModel, plain: mujoco.MjModel, state: np.ndarra
     Returns the same shape with ``model``'s nstate."""
     states = np.atleast_2d(np.asarray(state, float))
     src, data = mujoco.MjData(plain), mujoco.MjData(model)
-    starts = []  # (plugin state address, plain model's act address, fibre length) per actuator
-    for a, instance in schutte_actuators(model).items():
-        name = model.actuator(a).name
+    names = [model.actuator(a).name for a in schutte_actuators(model)]
+    for name in names:
         if name not in fibre_lengths:
             raise O2MError(f"no initial fibre length for the {PLUGIN} actuator '{name}'")
-        starts.append((model.plugin_stateadr[instance], plain.actuator_actadr[plain.actuator(name).id],
-                       fibre_lengths[name]))
+    acts = {n: int(plain.actuator_actadr[plain.actuator(n).id]) for n in names}
     out = np.zeros((len(states), mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
+    starts = []  # per run: each actuator's (activation in the plain model's state, fibre length)
     for row, s in zip(out, states, strict=True):
         mujoco.mj_setState(plain, src, s, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         data.time, data.qpos[:], data.qvel[:] = src.time, src.qpos, src.qvel
-        for adr, act, fibre in starts:
-            data.plugin_state[adr:adr + 2] = src.act[act], fibre
         mujoco.mj_getState(model, data, row, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        starts.append({n: (float(src.act[acts[n]]), fibre_lengths[n]) for n in names})
+    out = with_schutte_starts(model, out, starts)
     return out if np.ndim(state) == 2 else out[0]
 
 
@@ -168,6 +167,8 @@ def with_schutte_starts(model: mujoco.MjModel, states: np.ndarray,
     data = mujoco.MjData(model)
     out = np.array(states, dtype=float, copy=True)
     plugged = {model.actuator(a).name: int(model.plugin_stateadr[i]) for a, i in schutte_actuators(model).items()}
+    if not plugged:
+        return out
     for row, start in zip(out, starts, strict=True):
         mujoco.mj_setState(model, data, row, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         for name, adr in plugged.items():

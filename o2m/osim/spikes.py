@@ -300,13 +300,24 @@ def _path_test(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[i
     return out
 
 
+def _detour(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:
+    return path_detour(current_path_points(os_model, state, name))
+
+
+def _loop(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:
+    return path_loop(wrap_runs(os_model, state, name))
+
+
+def _winding(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:
+    return path_winding(wrap_arcs(os_model, state, name))
+
+
 def opensim_detours(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
                     lengths: np.ndarray | None = None) -> dict[int, dict[str, Any]]:
     """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
     ``values`` makes a detour (:func:`path_detour`): muscle index -> {"test": "detour", "wrap",
     "segment", "beyond", "length" (m)}."""
-    return _path_test(pair, values, muscles, lengths, "detour",
-                      lambda model, state, name: path_detour(current_path_points(model, state, name)))
+    return _path_test(pair, values, muscles, lengths, "detour", _detour)
 
 
 def opensim_loops(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
@@ -314,8 +325,7 @@ def opensim_loops(pair: ModelPair, values: Mapping[str, float], muscles: Sequenc
     """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
     ``values`` loops round a wrap (:func:`path_loop`): muscle index -> {"test": "loop", "wrap",
     "kind", "length" (m)}."""
-    return _path_test(pair, values, muscles, lengths, "loop",
-                      lambda model, state, name: path_loop(wrap_runs(model, state, name)))
+    return _path_test(pair, values, muscles, lengths, "loop", _loop)
 
 
 def opensim_windings(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
@@ -323,8 +333,7 @@ def opensim_windings(pair: ModelPair, values: Mapping[str, float], muscles: Sequ
     """The muscles (indices into ``pair.matched``) whose OpenSim path at the pose of independent
     ``values`` winds round a wrap (:func:`path_winding`): muscle index -> {"test": "winding",
     "wrap", "kind", "turn" (radians), "length" (m)}."""
-    return _path_test(pair, values, muscles, lengths, "winding",
-                      lambda model, state, name: path_winding(wrap_arcs(model, state, name)))
+    return _path_test(pair, values, muscles, lengths, "winding", _winding)
 
 
 def drawn_length(os_model: Any, state: Any, name: str) -> float:
@@ -385,15 +394,10 @@ def path_failure(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:
     "winding", and what the test found}, or None. A length that is not that of its drawn path is
     left to :func:`opensim_inconsistencies`: it can still be continuous with its neighbours'
     (Arm26's TRIlong over its two wraps, drawn 8 % longer at shoulder elevation 1.96-2.03 rad)."""
-    found = path_detour(current_path_points(os_model, state, name))
-    if found is not None:
-        return {"test": "detour", **found}
-    found = path_loop(wrap_runs(os_model, state, name))
-    if found is not None:
-        return {"test": "loop", **found}
-    found = path_winding(wrap_arcs(os_model, state, name))
-    if found is not None:
-        return {"test": "winding", **found}
+    for test, find in (("detour", _detour), ("loop", _loop), ("winding", _winding)):
+        found = find(os_model, state, name)
+        if found is not None:
+            return {"test": test, **found}
     return None
 
 

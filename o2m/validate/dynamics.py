@@ -32,7 +32,7 @@ import numpy as np
 from o2m.activations import generate_activations
 from o2m.errors import ValidationError
 from o2m.mj.posing import load_mjcf
-from o2m.mj.schutte_plugin import schutte_actuators, with_schutte_starts
+from o2m.mj.schutte_plugin import with_schutte_starts
 from o2m.mj.simulate import controls_from_excitations, initial_state, rollout
 from o2m.osim.simulate import IntegratorSettings, ModelOutline, OpenSimRun, model_outline, run_many
 from o2m.osim.storage import read_sto
@@ -352,8 +352,8 @@ def compare_dynamics(osim_path: str | os.PathLike[str], mjcf_path: str | os.Path
     keep = [exc.muscles.index(m) for m in driven]
     controls = controls_from_excitations(model, driven, exc.values[:, :, keep])
     starts = np.stack([_mujoco_start(model, run, outline, exc.times[0], start) for run in runs])
-    if schutte_actuators(model):  # OpenSim's own muscles (convert --opensim-muscles): OpenSim's start
-        starts = with_schutte_starts(model, starts, [_muscle_starts(run) for run in runs])
+    # OpenSim's own muscles (convert --opensim-muscles) start at OpenSim's activation and fibre
+    starts = with_schutte_starts(model, starts, [_muscle_starts(run) for run in runs])
     traj = rollout(model, starts, controls, joint_names=names, nthread=max_workers)
     mj = traj.coordinates.copy()
     mj[traj.diverged] = np.nan
