@@ -395,6 +395,33 @@ def test_split_variants_are_the_contiguous_runs_of_wraps():
     assert split_variants([WrapSplit("m", ("P1", "P2"), ["a"])], geoms) == {}
 
 
+def test_the_variant_is_chosen_on_its_validation_poses_too():
+    """A variant nearer OpenSim at its few fitting and check poses but further in length at the
+    validation poses it was not fitted on gives way; without validation poses the choice is as
+    before."""
+    from types import SimpleNamespace
+
+    from o2m.convert.wrap_choice import best_variant
+
+    def fit(label, objective, pct, valid=None, arm=0.0):
+        errors = {"objective": objective, "len_max_pct": pct, "len_rms_mm": 0.0, "ma_rms_mm": arm, "poses": 35}
+        return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[], flips=0,
+                               valid_after=valid and {"objective": valid[0], "len_max_pct": valid[1],
+                                                      "len_rms_mm": valid[0] ** 0.5, "poses": 100})
+
+    assert best_variant([fit("both", 169.0, 19.0), fit("PEC12hum", 190.0, 19.5)]).variant == "both"
+    chosen = best_variant([fit("both", 169.0, 19.0, (83.0, 23.9)), fit("PEC12hum", 190.0, 19.5, (31.0, 21.1))])
+    assert chosen.variant == "PEC12hum"
+    assert chosen.variants["both"]["objective"] > chosen.variants["PEC12hum"]["objective"]
+    # the validation poses have lengths only: a variant whose lengths are nearer there but whose
+    # moment arms are far off at the fitting poses is not kept (MoBL-ARMS's DELT1 straight); here
+    # neither is near the best of both, so the objective decides
+    sphere, straight = fit("sphere", 6.0, 1.8, (11.2, 11.3), arm=2.0), fit("straight", 50.0, 1.9, (6.5, 6.3), arm=7.0)
+    assert best_variant([sphere, straight]).variant == "sphere"
+    # a moment-arm RMS far above another's rules a variant out, whatever its objective
+    assert best_variant([fit("a", 10.0, 1.0, arm=3.0), fit("b", 12.0, 1.0, arm=1.0)]).variant == "b"
+
+
 def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_worst_length():
     """A variant with the smallest objective but a worst length far above another's (MoBL-ARMS's
     PECM1: PEC1hh alone 398 mm², 40 %; PEC12hum alone 447 mm², 26.7 %) is not kept."""
@@ -403,7 +430,7 @@ def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_w
     from o2m.convert.wrap_choice import best_variant
 
     def fit(label, objective, pct):
-        errors = {"objective": objective, "len_max_pct": pct, "poses": 10}
+        errors = {"objective": objective, "len_max_pct": pct, "len_rms_mm": 0.0, "poses": 10}
         return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[], flips=0)
 
     fits = [fit("both", 492.0, 35.4), fit("PEC12hum", 447.0, 26.7), fit("PEC1hh", 398.0, 40.0)]
@@ -549,6 +576,25 @@ def test_a_failure_band_is_left_out_with_its_evidence():
     found = opensim_spikes(pair, {"q": 0.5}, [0], banded=[0])
     assert set(found) == {0} and found[0]["step"] > 0.05, found
     assert found[0]["length"] > 0.6 and max(found[0]["neighbours"]) < 0.4
+
+
+def test_without_the_spike_tests_only_the_pose_itself_is_read(monkeypatch):
+    """The validation poses of the wrap fit are tested for OpenSim's failures of the pose's own
+    path (a loop, here) without the spike tests, which pose each coordinate's neighbours."""
+    import o2m.osim.spikes as spikes
+
+    pair = _FakePair(_band)
+    posed = []
+    read = pair.os_state
+    monkeypatch.setattr(pair, "os_state", lambda values: posed.append(values["q"]) or read(values))
+    for name in ("opensim_detours", "opensim_loops", "opensim_windings", "opensim_inconsistencies"):
+        found = {0: {"test": "loop"}} if name == "opensim_loops" else {}
+        monkeypatch.setattr(spikes, name, lambda *args, _found=found, **kw: dict(_found))
+    lengths = np.array([_band(0.5)])
+    assert spikes.opensim_failures(pair, {"q": 0.5}, [0], lengths, banded=[0], spikes=False) == {0: {"test": "loop"}}
+    assert posed == []
+    found = spikes.opensim_failures(pair, {"q": 0.5}, [0], lengths, banded=[0])
+    assert found[0]["step"] > 0.05 and len(posed) > 2  # the band, found on the neighbours
 
 
 @pytest.mark.parametrize("length", [lambda q: 0.3 + 0.05 * math.sin(3 * q),

@@ -225,8 +225,8 @@ def test_simulates_one_second_of_random_excitation(converted):
 # --------------------------------------------------------------------------------------------
 
 #: Measured on the wrapped MoBL-ARMS (quick mode, seed 0, 100 poses, 25 for moment arms, none of
-#: them the wrap fit's own: o2m.convert.wrapfit.FIT_POSE_SEED): worst length 26.4 % (PECM1; DELT3
-#: 20.9 %), moment arms 0.600 / 11.3 / 18.5 mm, 133 OpenSim samples left out, each with its
+#: them the wrap fit's own: o2m.convert.wrapfit.FIT_POSE_SEED): worst length 20.9 % (DELT3; PECM1
+#: 18.8 %), moment arms 0.536 / 10.0 / 14.2 mm, 134 OpenSim samples left out, each with its
 #: evidence (checked below): windings of SUP round its cylinder (over a full turn, for pro_sup
 #: above about 0.07 rad), loops round TMAJ_LAThum (TMAJ, LAT1-3: OpenSim's quadrant rule takes the
 #: path 268-299 degrees round, its runs crossing, which MuJoCo's wrap refuses), lengths not of the
@@ -236,8 +236,9 @@ def test_simulates_one_second_of_random_excitation(converted):
 #: conversion measured 15.6 % (PECM1) and 0.331 / 8.70 / 14.1 mm there: an in-sample figure. At
 #: full size (120 fitting poses) 18.8 % (PECM1), 0.571 / 8.96 / 19.0 mm. PECM/LAT keep the no-wrap
 #: model's same-body floor against computeMomentArm (8.4-12.4 mm RMS about shoulder_elv, asserted
-#: there).
-WRAPPED_MOBL = {"len_pct": 27.0, "ma_median_mm": 0.62, "ma_p95_mm": 11.6, "ma_max_mm": 19.0, "left_out": 137}
+#: there). Before the wrap fit chose among a tendon's variants on its validation poses too
+#: (o2m.convert.wrap_choice): 26.4 % (PECM1), 0.600 / 11.3 / 18.5 mm.
+WRAPPED_MOBL = {"len_pct": 21.5, "ma_median_mm": 0.56, "ma_p95_mm": 10.3, "ma_max_mm": 14.6, "left_out": 137}
 #: The wrapped MoBL-ARMS's missed targets (same report) at a floor OpenSim's own path forces on any
 #: tendon, o2m within the target of it (o2m.validate.floors; (path, coordinate) for a moment arm):
 #: PECM2-3 and LAT1-2 keep the no-wrap model's same-body segments, where computeMomentArm is not
