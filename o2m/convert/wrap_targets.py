@@ -62,10 +62,10 @@ def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: 
     ``designed``) and, over the first ``n_contact`` poses, the wrap-arc points of each tendon's
     wrap objects named in ``contacts`` (tendon -> wrap names). Poses after the first ``n_arms``
     (default: every pose) get lengths only: no moment arms (NaN; each pose's cost two OpenSim
-    assemblies per coordinate and step) and of the tests of OpenSim's own failures only those of
-    the pose's own path (no one-pose spike test: several assemblies per suspect, and a model whose
-    paths are far from OpenSim has many): for choosing among fits on poses they were not fitted
-    on, not as targets."""
+    assemblies per coordinate and step) and the tests of OpenSim's own failures only for the
+    samples the converted model misses by over 5 % (:func:`~o2m.osim.spikes.band_suspects`), not
+    for every suspect (a model whose paths are far from OpenSim has many): for choosing among fits
+    on poses they were not fitted on, not as targets."""
     from o2m.mj.posing import joint_qpos_address, resolve_joint_equalities
     from o2m.mj.tendons import coordinate_direction, qpos_to_dof
     from o2m.osim.pair import ModelPair
@@ -126,7 +126,8 @@ def fit_targets(osim_path: str, xml_path: str, tendons: Sequence[str], n_poses: 
         err = np.abs(converted - base)
         suspects = wanted_idx[err[wanted_idx] > SPIKE_TOL]
         banded = np.intersect1d(band_suspects(converted, base), wanted_idx)
-        for i in opensim_failures(pair, values, suspects, raw, banded, spikes=not lengths_only):
+        # lengths-only poses: the samples far off only (a spike there can decide a choice)
+        for i in opensim_failures(pair, values, banded if lengths_only else suspects, raw, banded):
             ok[i] = False
         # a wrap arc OpenSim draws with non-finite points (MoBL_ARMS_model_for_mujoco.osim's DELT3 at
         # one pose of the full fit's): no target, and one NaN would spread to every pose's

@@ -402,14 +402,12 @@ def path_failure(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:
 
 
 def opensim_failures(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],
-                     lengths: np.ndarray | None = None, banded: Sequence[int] = (),
-                     spikes: bool = True) -> dict[int, dict[str, Any]]:
-    """:func:`opensim_spikes` (unless ``spikes`` is False: its neighbour poses cost several
-    assemblies per suspect), and for the ``banded`` muscles it does not flag,
+                     lengths: np.ndarray | None = None, banded: Sequence[int] = ()) -> dict[int, dict[str, Any]]:
+    """:func:`opensim_spikes`, and for the ``banded`` muscles it does not flag,
     :func:`opensim_detours`, :func:`opensim_loops`, :func:`opensim_windings` and
-    :func:`opensim_inconsistencies`, which look at the one pose's path only: every (muscle, pose)
-    sample that is no fair test of a converted path."""
-    out = opensim_spikes(pair, values, muscles, lengths, banded) if spikes else {}
+    :func:`opensim_inconsistencies`: every (muscle, pose) sample that is no fair test of a
+    converted path."""
+    out = opensim_spikes(pair, values, muscles, lengths, banded)
     for test in (opensim_detours, opensim_loops, opensim_windings, opensim_inconsistencies):
         rest = [int(i) for i in banded if int(i) not in out]
         out.update(test(pair, values, rest, lengths) if rest else {})

@@ -578,25 +578,6 @@ def test_a_failure_band_is_left_out_with_its_evidence():
     assert found[0]["length"] > 0.6 and max(found[0]["neighbours"]) < 0.4
 
 
-def test_without_the_spike_tests_only_the_pose_itself_is_read(monkeypatch):
-    """The validation poses of the wrap fit are tested for OpenSim's failures of the pose's own
-    path (a loop, here) without the spike tests, which pose each coordinate's neighbours."""
-    import o2m.osim.spikes as spikes
-
-    pair = _FakePair(_band)
-    posed = []
-    read = pair.os_state
-    monkeypatch.setattr(pair, "os_state", lambda values: posed.append(values["q"]) or read(values))
-    for name in ("opensim_detours", "opensim_loops", "opensim_windings", "opensim_inconsistencies"):
-        found = {0: {"test": "loop"}} if name == "opensim_loops" else {}
-        monkeypatch.setattr(spikes, name, lambda *args, _found=found, **kw: dict(_found))
-    lengths = np.array([_band(0.5)])
-    assert spikes.opensim_failures(pair, {"q": 0.5}, [0], lengths, banded=[0], spikes=False) == {0: {"test": "loop"}}
-    assert posed == []
-    found = spikes.opensim_failures(pair, {"q": 0.5}, [0], lengths, banded=[0])
-    assert found[0]["step"] > 0.05 and len(posed) > 2  # the band, found on the neighbours
-
-
 @pytest.mark.parametrize("length", [lambda q: 0.3 + 0.05 * math.sin(3 * q),
                                     lambda q: 0.3 + (0.02 if q > 0.5 else 0.0),
                                     lambda q: 0.3 + (0.01 if 0.45 < q < 0.52 else 0.0)])
