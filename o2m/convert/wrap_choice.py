@@ -149,10 +149,7 @@ def _overall(fit: Any) -> float:
     """A fit's objective over all its pose sets (mm²; inf where not finite): its mean squared
     length error over every pose, the validation poses among them, plus its mean squared
     moment-arm error over the fitting and check poses (the validation poses have lengths only)."""
-    armed = [fit.after, fit.check_after]
-    length = _mean([(s["len_rms_mm"] ** 2, s["poses"]) for s in _pose_sets(fit)])
-    arms = _mean([(s["objective"] - s["len_rms_mm"] ** 2, s["poses"]) for s in armed])
-    value = length + arms
+    value = _mean([(s["len_rms_mm"] ** 2, s["poses"]) for s in _pose_sets(fit)]) + _arm_rms(fit) ** 2
     return value if math.isfinite(value) else math.inf
 
 
@@ -170,7 +167,7 @@ def _worst_pct(fit: Any) -> float:
 
 def _arm_rms(fit: Any) -> float:
     """A fit's RMS moment-arm error over its fitting and check poses (mm; inf where not finite)."""
-    value = math.sqrt(_mean([(s.get("ma_rms_mm", 0.0) ** 2, s["poses"]) for s in (fit.after, fit.check_after)]))
+    value = math.sqrt(_mean([(s["ma_rms_mm"] ** 2, s["poses"]) for s in (fit.after, fit.check_after)]))
     return value if math.isfinite(value) else math.inf
 
 

@@ -61,7 +61,8 @@ def test_opensim_shares_a_jump_only_where_its_own_length_steps():
 
 def test_a_variant_that_flips_gives_way_to_a_near_one_that_does_not():
     def fit(label, objective, pct, flips):
-        errors = {"objective": objective, "len_max_pct": pct, "len_rms_mm": 0.0, "poses": 10}
+        errors = {"objective": objective, "len_max_pct": pct, "len_rms_mm": 0.0, "ma_rms_mm": objective**0.5,
+                  "poses": 10}
         return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[], flips=flips)
 
     assert best_variant([fit("glen", 82.0, 5.4, 7), fit("both", 84.1, 4.9, 0)]).variant == "both"

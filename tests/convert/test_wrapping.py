@@ -403,23 +403,25 @@ def test_the_variant_is_chosen_on_its_validation_poses_too():
 
     from o2m.convert.wrap_choice import best_variant
 
-    def fit(label, objective, pct, valid=None, arm=0.0):
-        errors = {"objective": objective, "len_max_pct": pct, "len_rms_mm": 0.0, "ma_rms_mm": arm, "poses": 35}
+    def fit(label, arm, pct, valid=None, length=0.0):
+        """Errors at the fitting and check poses: RMS moment arm ``arm`` and length ``length`` (mm)."""
+        errors = {"objective": length**2 + arm**2, "len_max_pct": pct, "len_rms_mm": length, "ma_rms_mm": arm,
+                  "poses": 35}
         return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[], flips=0,
                                valid_after=valid and {"objective": valid[0], "len_max_pct": valid[1],
-                                                      "len_rms_mm": valid[0] ** 0.5, "poses": 100})
+                                                      "len_rms_mm": valid[0] ** 0.5, "ma_rms_mm": 0.0, "poses": 100})
 
-    assert best_variant([fit("both", 169.0, 19.0), fit("PEC12hum", 190.0, 19.5)]).variant == "both"
-    chosen = best_variant([fit("both", 169.0, 19.0, (83.0, 23.9)), fit("PEC12hum", 190.0, 19.5, (31.0, 21.1))])
+    assert best_variant([fit("both", 13.0, 19.0), fit("PEC12hum", 13.8, 19.5)]).variant == "both"
+    chosen = best_variant([fit("both", 13.0, 19.0, (83.0, 23.9)), fit("PEC12hum", 13.8, 19.5, (31.0, 21.1))])
     assert chosen.variant == "PEC12hum"
     assert chosen.variants["both"]["objective"] > chosen.variants["PEC12hum"]["objective"]
     # the validation poses have lengths only: a variant whose lengths are nearer there but whose
     # moment arms are far off at the fitting poses is not kept (MoBL-ARMS's DELT1 straight); here
     # neither is near the best of both, so the objective decides
-    sphere, straight = fit("sphere", 6.0, 1.8, (11.2, 11.3), arm=2.0), fit("straight", 50.0, 1.9, (6.5, 6.3), arm=7.0)
+    sphere, straight = fit("sphere", 2.0, 1.8, (11.2, 11.3)), fit("straight", 7.0, 1.9, (6.5, 6.3))
     assert best_variant([sphere, straight]).variant == "sphere"
     # a moment-arm RMS far above another's rules a variant out, whatever its objective
-    assert best_variant([fit("a", 10.0, 1.0, arm=3.0), fit("b", 12.0, 1.0, arm=1.0)]).variant == "b"
+    assert best_variant([fit("a", 2.0, 1.0, length=1.0), fit("b", 1.2, 1.0, length=2.0)]).variant == "b"
 
 
 def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_worst_length():
@@ -430,7 +432,8 @@ def test_the_kept_variant_has_the_smallest_objective_among_those_near_the_best_w
     from o2m.convert.wrap_choice import best_variant
 
     def fit(label, objective, pct):
-        errors = {"objective": objective, "len_max_pct": pct, "len_rms_mm": 0.0, "poses": 10}
+        errors = {"objective": objective, "len_max_pct": pct, "len_rms_mm": 0.0, "ma_rms_mm": objective**0.5,
+                  "poses": 10}
         return SimpleNamespace(variant=label, after=errors, check_after=errors, variants={}, dropped=[], flips=0)
 
     fits = [fit("both", 492.0, 35.4), fit("PEC12hum", 447.0, 26.7), fit("PEC1hh", 398.0, 40.0)]
