@@ -193,9 +193,11 @@ def best_variant(fits: list[Any]) -> Any:
 
 
 def variant_errors(fits: list[Any]) -> dict[str, dict[str, float]]:
-    """Each fitted variant's objective (mm²) and worst length error (%) over all its poses, and
-    its flips between the fitting poses that OpenSim does not share."""
-    return {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f), "flips": f.flips} for f in fits}
+    """Each fitted variant's objective (mm²) and worst length error (%) over all its poses, its
+    moment-arm RMS (mm) over the fitting and check poses, and its flips between the fitting poses
+    that OpenSim does not share."""
+    return {f.variant: {"objective": _overall(f), "len_max_pct": _worst_pct(f), "ma_rms_mm": _arm_rms(f),
+                        "flips": f.flips} for f in fits}
 
 
 #: MjsTendon attributes that are no setting of its own.

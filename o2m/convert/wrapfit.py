@@ -112,8 +112,8 @@ class PathFit:
     seconds: float
     values: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     #: the variant kept (:mod:`o2m.convert.wrap_choice`; "" when the tendon has none), the MuJoCo
-    #: sites and geoms it leaves out, and every variant's errors over all poses (label ->
-    #: {"objective" (mm²), "len_max_pct"})
+    #: sites and geoms it leaves out, and every variant's errors (label -> {"objective" (mm²),
+    #: "len_max_pct", "ma_rms_mm", "flips"}: :func:`~o2m.convert.wrap_choice.variant_errors`)
     variant: str = ""
     dropped: list[str] = field(default_factory=list)
     variants: dict[str, dict[str, float]] = field(default_factory=dict)
@@ -424,7 +424,7 @@ def fit_paths(osim_path: str | os.PathLike, xml: str, path_geoms: Sequence[Any],
     tendon's geoms (:mod:`o2m.convert.wrap_split`'s); ``variants`` (tendon -> its
     :class:`o2m.convert.wrap_choice.PathVariant` s) the choices of wraps fitted for a tendon (any
     other: whole and straight, :func:`~o2m.convert.wrap_choice.whole_and_straight`), the one
-    with the smallest objective over all its poses kept (an ellipsoid's swapped stand-in also
+    :func:`~o2m.convert.wrap_choice.best_variant` picks kept (an ellipsoid's swapped stand-in also
     checked on the ``validate`` extra poses of :data:`QUICK` / :data:`FULL`, on which no fit may
     be over :data:`VALIDATION_GROWTH` times worse than its start). Each tendon's CMA-ES
     seed follows from ``seed`` and its name alone. Returns one :class:`PathFit` per tendon, in
@@ -552,10 +552,11 @@ def format_fits(fits: Sequence[PathFit]) -> list[str]:
                      + (f"; flips round a wrap where OpenSim does not on {f.flips} of the lines between its poses"
                         if f.flips else ""))
         if f.variants:
-            tried = "; ".join(f"{label} {v['objective']:.3g} mm², {v['len_max_pct']:.3g} %"
+            tried = "; ".join(f"{label} {v['objective']:.3g} mm², {v['len_max_pct']:.3g} %, {v['ma_rms_mm']:.3g} mm"
                               + (f", {v['flips']} flips" if v.get("flips") else "")
                               for label, v in f.variants.items())
-            lines.append(f"    wraps kept: {f.variant} (objective and worst length error over all poses: {tried})")
+            lines.append(f"    wraps kept: {f.variant} (objective and worst length error over all poses, "
+                         f"moment-arm RMS over the fitting and check poses: {tried})")
     return lines
 
 
