@@ -336,9 +336,10 @@ def test_wrapped_mobl_arms_simulates_one_second_of_random_excitation(wrapped_mob
 
 #: Jumps of the wrapped MoBL-ARMS's tendons along its runs of the dataset's 19 test sets (the
 #: dataset's excitations and initial states; quick conversion) that OpenSim's path does not share
-#: at the same poses. The same MJCF gives different runs on different processors (1 s of muscle
-#: dynamics amplifies their last-bit differences), so which flip regions a run crosses varies:
-#: measured, none on an AMD EPYC and three of TRIlong (1.23-1.66 mm) on an Intel Xeon. Asserted
+#: at the same poses. The conversion differs a little between processors (its wrap fit's CMA-ES
+#: runs on OpenBLAS kernels chosen per processor), and with it which flip regions the runs cross:
+#: measured, none on an AMD EPYC and three of TRIlong (1.23-1.66 mm) on an Intel Xeon (none there
+#: either with OPENBLAS_CORETYPE=Haswell, the EPYC's kernels, set for the conversion). Asserted
 #: what holds on both: each flip is of a tendon whose wrap fit reported flips between its poses
 #: (TRIlong keeps TRIlongglen with TRIlonghh, 5 such flips), and none exceeds ``largest_m``. The
 #: wrap fit prefers a variant that does not flip between its poses (o2m.convert.wrap_jumps);
