@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-from tests.helpers import convert_options, local_mirror, require_models
+from tests.helpers import QUICK, convert_options, local_mirror, require_models
 
 #: Bundled models converted at full size in quick runs too: Arm26's full wrap fit takes a few
 #: seconds more, and its quick one (40 poses) lands on either side of BIClong's kink (OpenSim's
@@ -52,7 +52,7 @@ def bundled_conversion(tmp_path_factory):
         if name not in done:
             require_models()
             fetched = models.fetch_model_with_geometry(name, progress=False)
-            options = convert_options(workers=2, **({"quick": False} if name in FULL_SIZE else {}))
+            options = convert_options(workers=2, quick=QUICK and name not in FULL_SIZE)
             conv = convert(fetched.osim, tmp_path_factory.mktemp(name), options, geometry_dirs=[fetched.geometry_dir])
             done[name] = (fetched, conv)
         return done[name]

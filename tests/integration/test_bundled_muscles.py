@@ -25,7 +25,7 @@ from o2m.osim.spikes import BAND_FRACTION, DETOUR_FRACTION, FULL_TURN, LOOP_KIND
 from o2m.validate.floors import target_misses
 from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, sweep_jumps, trajectory_jumps
 from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_MEDIAN_MM, MA_P95_MM, compare_muscles
-from tests.helpers import QUICK, approximation_budget
+from tests.helpers import approximation_budget
 
 NAMES = ["tug_of_war", "arm26", "leg6dof9musc", "gait10dof18musc", "gait2354", "gait2392", "mobl_arms_no_wrap"]
 
@@ -50,11 +50,9 @@ GAPS = {
     "mobl_arms_no_wrap": {"ma_p95": 4.2, "ma_max": 15.0,
                           "ma_floor": {m: "shoulder_elv" for m in ("PECM2", "PECM3", "LAT2", "LAT3")}},
 }
-#: Gaps of the quick wrap fit only, measured on poses it did not fit (its poses are drawn apart
-#: from these, o2m.convert.wrapfit.FIT_POSE_SEED): none. (Arm26, whose quick fit missed BIClong's
-#: moment-arm p95 by a processor-dependent amount, is converted at full size: tests/conftest.py's
-#: FULL_SIZE.)
-QUICK_GAPS: dict[str, dict] = {}
+#: The quick wrap fit (its poses drawn apart from these, o2m.convert.wrapfit.FIT_POSE_SEED) has no
+#: gaps of its own: Arm26, whose quick fit missed BIClong's moment-arm p95 by a processor-dependent
+#: amount, is converted at full size (tests/conftest.py's FULL_SIZE).
 #: Measured MuJoCo sweep jumps not met (tendon -> mm): none. (MuJoCo's psoas/iliacus step at hip
 #: flexion -90 and +45 degrees is OpenSim's own, 19.5-22.8 mm, at the same place.)
 JUMP_GAPS: dict[str, dict[str, float]] = {}
@@ -93,7 +91,7 @@ def test_every_path_is_a_named_tendon_and_plain_paths_are_exact(converted):
 def test_issue_targets_over_200_poses(converted):
     name, osim, conv = converted
     rep = compare_muscles(osim, conv.xml, n_poses=200, seed=0, ma_poses=50)
-    gap = {**GAPS.get(name, {}), **(QUICK_GAPS.get(name, {}) if QUICK else {})}
+    gap = GAPS.get(name, {})
     for muscle, e in rep.muscles.items():
         allowed = gap.get("len", {}).get(muscle, LEN_PCT)
         assert e.max_len_pct <= allowed, f"{name}/{muscle}: length error {e.max_len_pct:.3g} % > {allowed} %"
