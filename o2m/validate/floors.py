@@ -6,8 +6,10 @@ than the target on one side of the step; or its dynamic moment arm (``computeMom
 the derivative of its length, so no tendon within the length target has that moment arm (a
 tendon's moment arm is always ``-dL/dq`` of its own length). :func:`target_misses` lists every
 path and (path, coordinate) pair of a :class:`~o2m.validate.muscles.MuscleReport` that misses the
-targets, each with the floor measured along one coordinate (:mod:`o2m.validate.jumps`); a floor
-found there is a lower bound, so a miss without one may still be OpenSim's.
+targets, each with the floor measured along one coordinate (:mod:`o2m.validate.jumps`), from the
+defaults and, for a length, through the pose of the path's worst error and along lines from it in
+the space of all coordinates; a floor found there is a lower bound, so a miss without one may
+still be OpenSim's.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import os
 from dataclasses import dataclass
 
 from o2m.osim.pair import ModelPair
-from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps
+from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, opensim_steps_around
 from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_P95_MM, MuscleReport
 
 __all__ = ["TargetMiss", "target_misses"]
@@ -31,7 +33,10 @@ class TargetMiss:
     in % of OpenSim's length) or a (path, coordinate) moment-arm RMS (m).
 
     ``floor``: what no continuous tendon can beat, in the same unit: for a length, half the
-    largest step of OpenSim's length along any coordinate (``floor_coordinate``); for a moment
+    largest step of OpenSim's length along any coordinate (``floor_coordinate``; the others at
+    their defaults, or at the path's worst pose where ``floor_through_worst``) or along a line
+    from the worst pose (``floor_coordinate`` "a line",
+    :func:`~o2m.validate.jumps.opensim_steps_around`); for a moment
     arm, the least RMS from ``computeMomentArm`` of any tendon within the length target (or, where
     a length step leaves none, within that step's floor) along ``coordinate``. None where none
     was found. ``target_impossible``: the floor is beyond the target, so no tendon meets it;
@@ -45,6 +50,7 @@ class TargetMiss:
     target: float
     floor: float | None = None
     floor_coordinate: str | None = None
+    floor_through_worst: bool = False
 
     @property
     def target_impossible(self) -> bool:
@@ -58,7 +64,9 @@ class TargetMiss:
         """One line, e.g. ``FPL length 4.32 % > 1 % (OpenSim step floor 2.10 % along flexion)``."""
         if self.coordinate is None:
             what = f"{self.path} length {self.value:.3g} % > {self.target:g} %"
-            floor = (f"OpenSim step floor {self.floor:.3g} % along {self.floor_coordinate}"
+            where = ((" from" if self.floor_coordinate == "a line" else " through") + " its worst pose"
+                     if self.floor_through_worst else "")
+            floor = (f"OpenSim step floor {self.floor:.3g} % along {self.floor_coordinate}{where}"
                      if self.floor is not None else "no step in OpenSim's length")
         else:
             what = (f"{self.path} moment arm about {self.coordinate} {self.value * 1e3:.3g} mm RMS "
@@ -70,16 +78,29 @@ class TargetMiss:
         return f"{what} ({floor}: {verdict})"
 
 
-def _length_misses(report: MuscleReport, steps: list[dict]) -> list[TargetMiss]:
+def _length_misses(report: MuscleReport, pair: ModelPair, steps: list[dict]) -> list[TargetMiss]:
+    """Every path over the length target, with the largest step of OpenSim's length along one
+    coordinate from the defaults (``steps``) or through the pose of the path's worst error, or,
+    where those leave the miss o2m's, along lines from that pose."""
     out = []
     for name, err in report.muscles.items():
         if err.max_len_pct <= LEN_PCT:
             continue
         own = [s for s in steps if s["path"] == name]
-        top = max(own, key=lambda s: s["floor_pct"], default=None)
-        out.append(TargetMiss(name, None, err.max_len_pct, LEN_PCT, top and top["floor_pct"],
-                              top and top["coordinate"]))
+        if err.worst_pose:
+            own += opensim_length_steps(pair.osim_path, pair.mjcf_path, pair=pair, through=err.worst_pose,
+                                        paths=[name])
+            if not _length_miss(name, err.max_len_pct, own).at_floor:  # the lines cost most: only if they can tell
+                own += opensim_steps_around(pair, name, err.worst_pose)
+        out.append(_length_miss(name, err.max_len_pct, own))
     return out
+
+
+def _length_miss(name: str, value: float, steps: list[dict]) -> TargetMiss:
+    """The length miss ``value`` (%) of path ``name`` with its largest step among ``steps`` as floor."""
+    top = max(steps, key=lambda s: s["floor_pct"], default=None)
+    return TargetMiss(name, None, value, LEN_PCT, top and top["floor_pct"], top and (top["coordinate"] or "a line"),
+                      bool(top and top.get("through")))
 
 
 def _arm_misses(report: MuscleReport, pair: ModelPair, steps: list[dict], poses: int) -> list[TargetMiss]:
@@ -111,12 +132,13 @@ def target_misses(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike, re
     :data:`~o2m.validate.muscles.MA_P95_MM`, every pair above it, else where their maximum misses
     :data:`~o2m.validate.muscles.MA_MAX_MM`, every pair above that (a pair above both is held to
     the larger). The median's target is not attributed to pairs. Floors come from sweeps of
-    one coordinate, the others at their defaults (``poses`` poses for a moment arm). Lengths first,
+    one coordinate, the others at their defaults (``poses`` poses for a moment arm) or, for a
+    length, at the pose of the path's worst error, and from lines from that pose. Lengths first,
     then moment arms, each largest first."""
     if report.max_len_pct <= LEN_PCT and report.ma_p95 * 1e3 <= MA_P95_MM and report.ma_max * 1e3 <= MA_MAX_MM:
         return []
     pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
     steps = opensim_length_steps(osim_path, mjcf_path, pair=pair)
-    lengths = sorted(_length_misses(report, steps), key=lambda m: -m.value)
+    lengths = sorted(_length_misses(report, pair, steps), key=lambda m: -m.value)
     arms = sorted(_arm_misses(report, pair, steps, poses), key=lambda m: -m.value)
     return lengths + arms

@@ -8,7 +8,7 @@ step, which sets a floor on the length error any conversion can reach.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -18,18 +18,22 @@ from o2m.mj.tendons import tendon_length_steps
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL, sample_bounds
 from o2m.osim.spikes import (
+    BAND_FRACTION,
     BAND_STEPS,
     SPIKE_LINEAR_STEP,
     SPIKE_STEP,
+    drawn_length,
     one_pose_spikes,
     opensim_loops,
     opensim_windings,
     outlying_changes,
+    path_failure,
 )
 from o2m.validate.kinematics import jsonable
 from o2m.validate.muscles import LEN_PCT
 
-__all__ = ["continuous_tendon_front", "opensim_length_steps", "sweep_jumps", "trajectory_jumps"]
+__all__ = ["continuous_tendon_front", "opensim_length_steps", "opensim_steps_around", "sweep_jumps",
+           "trajectory_jumps"]
 
 
 #: Coordinate distance (rad, m) either side of a bisected step at which its two lengths are read:
@@ -178,10 +182,13 @@ def opensim_length_steps(
     bisections: int = 40,
     assembly_accuracy: float | None = 1e-12,
     pair: ModelPair | None = None,
+    through: Mapping[str, float] | None = None,
+    paths: Collection[str] | None = None,
 ) -> list[dict[str, Any]]:
     """Discontinuities of OpenSim's own path lengths, and what they cost any continuous tendon.
 
-    Each independent coordinate is swept over its range (the others at their defaults) in steps
+    Each independent coordinate is swept over its range (the others at their defaults, or at the
+    independent coordinate values ``through``: a pose, rad or m) in steps
     of ``step`` radians (``linear_step`` m); a neighbour interval whose length change stands out
     from its neighbours' by more than ``min_step`` / 2 is bisected ``bisections`` times towards
     the larger change. What is left (an interval of width ``range / 2**bisections``) changing by
@@ -192,13 +199,16 @@ def opensim_length_steps(
     Returns, largest ``floor_pct`` first, one dict per step::
 
         {"path", "coordinate", "at": q (rad or m), "height": L(after) - L(before) (m),
-         "length": [L before, L after] (m),
+         "length": [L before, L after] (m), "through": ``through`` (or None),
          "floor_pct": 100 * |height| / 2 / max(length)}  # a lower bound on any continuous
                                                           # tendon's worst length error, in %
 
     A step's lengths are read :data:`STEP_SIDE` either side of it (OpenSim failing at one pose is
     no step), and two opposite steps that make a band (:data:`BAND_WIDTH`, :data:`BAND_RETURN`)
-    are left out, as the comparison leaves such bands out. Only steps at the sweep's poses are
+    are left out, as the comparison leaves such bands out, and so is a step into a path that is no
+    fair test (a detour, loop or winding, or a length not that of the drawn path:
+    :func:`o2m.osim.spikes.path_failure`), which the comparison leaves out too. ``paths``: the path
+    forces to sweep (default all). Only steps at the sweep's poses are
     found (a step that a narrow spike makes, or one away from the other coordinates' defaults, can
     be missed): the floors are lower bounds.
     ``pair``: the two models already loaded (the paths and ``assembly_accuracy`` are then unused).
@@ -208,31 +218,106 @@ def opensim_length_steps(
     names = [n for n, _, _ in pair.matched]
     out: list[dict[str, Any]] = []
     spans = pair.spanned()
+    base = {**pair.defaults, **(through or {})}
+    wanted = set(names if paths is None else paths)
 
-    def lengths(cname: str, q: float) -> np.ndarray:
-        return pair.os_lengths(pair.os_state({**pair.defaults, cname: float(q)}, assemble=False))
+    def state(cname: str, q: float) -> Any:
+        return pair.os_state({**base, cname: float(q)}, assemble=False)
 
     for c in pair.indep:
         cname = pair.name(c)
-        paths = [i for i, n in enumerate(names) if cname in spans.get(n, set())]
-        if not paths:
+        swept = [i for i, n in enumerate(names) if n in wanted and cname in spans.get(n, set())]
+        if not swept:
             continue
         qs = pair.sweep_values(c, step, linear_step)
-        L = np.array([lengths(cname, q) for q in qs])[:, paths]
-        dL = np.diff(L, axis=0)
+        L = np.array([pair.os_lengths(state(cname, q)) for q in qs])
         linear = int(c.getMotionType() == TRANSLATIONAL)
-        for col, i in enumerate(paths):
-            found = []
-            for k in np.flatnonzero(outlying_changes(dL[:, col], min_step / 2)):
-                at = _bisect(lambda q: float(lengths(cname, q)[i]), float(qs[k]), float(qs[k + 1]),  # noqa: B023
-                             float(L[k, col]), float(L[k + 1, col]), bisections)
-                la, lb = (float(lengths(cname, at + sgn * STEP_SIDE[linear])[i]) for sgn in (-1, 1))
-                if abs(lb - la) > min_step:
-                    found.append({"path": names[i], "coordinate": cname, "at": at, "height": lb - la,
-                                  "length": [la, lb], "floor_pct": 100.0 * abs(lb - la) / 2.0 / max(la, lb)})
-            out += _without_bands(found, BAND_WIDTH[linear])
+        for i in swept:
+            out += _steps_on_sweep(pair, i, qs, L[:, i], lambda q: state(cname, q),  # noqa: B023
+                                   {"coordinate": cname, "through": dict(through) if through else None},
+                                   min_step, bisections, STEP_SIDE[linear], BAND_WIDTH[linear])
     out.sort(key=lambda s: -s["floor_pct"])
     return out
+
+
+def opensim_steps_around(
+    pair: ModelPair,
+    name: str,
+    pose: Mapping[str, float],
+    *,
+    lines: int = 12,
+    candidates: int = 100,
+    samples: int = 121,
+    seed: int = 0,
+    min_step: float = 5e-4,
+    bisections: int = 30,
+) -> list[dict[str, Any]]:
+    """Steps of OpenSim's length of the path force ``name`` along straight lines in the space of
+    independent coordinates, from ``pose`` (their values, rad or m) to the ``lines`` nearest of
+    ``candidates`` poses drawn uniformly over the coordinates' ranges (``seed``).
+
+    The sweeps of :func:`opensim_length_steps` move one coordinate; a step where two or three
+    move together (a finite WrapCylinder's end crossing the path, which a shoulder's three
+    rotations move) is met along a line, at ``samples`` poses each, bisected as there and kept
+    under the same rules (read :data:`STEP_SIDE` either side, no band, no unfair side). Returns
+    the steps as :func:`opensim_length_steps` does, with ``"coordinate"`` None, ``"at"`` the
+    distance along the line (in the coordinates' units), ``"through"`` ``pose`` and
+    ``"towards"`` the line's other end."""
+    names = [n for n, _, _ in pair.matched]
+    index = names.index(name)
+    bounds = np.array([sample_bounds(c) for c in pair.indep], dtype=float).reshape(-1, 2)
+    start = np.array([pose.get(n, pair.defaults[n]) for n in pair.indep_names])
+    draws = np.random.default_rng(seed).uniform(bounds[:, 0], bounds[:, 1], size=(candidates, len(bounds)))
+    out: list[dict[str, Any]] = []
+    apart = np.linalg.norm(draws - start, axis=1)
+    nearest = [k for k in np.argsort(apart) if apart[k] > 1e-9][:lines]  # ``pose`` may be a draw
+    for end in draws[nearest]:
+        span = float(np.linalg.norm(end - start))
+
+        def state(d: float, end: np.ndarray = end, span: float = span) -> Any:
+            return pair.os_state(dict(zip(pair.indep_names, start + d / span * (end - start), strict=True)),
+                                 assemble=False)
+
+        ds = np.linspace(0.0, span, samples)
+        L = np.array([pair.os_lengths(state(d))[index] for d in ds])
+        out += _steps_on_sweep(pair, index, ds, L, state,
+                               {"coordinate": None, "through": dict(pose),
+                                "towards": dict(zip(pair.indep_names, end.tolist(), strict=True))},
+                               min_step, bisections, STEP_SIDE[0], BAND_WIDTH[0])
+    out.sort(key=lambda s: -s["floor_pct"])
+    return out
+
+
+def _steps_on_sweep(pair: ModelPair, index: int, qs: np.ndarray, L: np.ndarray, state: Callable[[float], Any],
+                    meta: dict[str, Any], min_step: float, bisections: int, side: float,
+                    width: float) -> list[dict[str, Any]]:
+    """The steps of OpenSim's length of path ``index`` (into ``pair.matched``) over a sweep:
+    ``L`` (n,) its lengths (m) at the sweep's parameters ``qs`` (n,), ``state(q)`` the realised
+    state at ``q``. Each outlying change is bisected, its lengths read ``side`` either side, and
+    kept if over ``min_step`` with a fair path on both sides; then bands ``width`` wide are left
+    out. Each step's dict: ``meta`` and "path", "at", "height", "length", "floor_pct"."""
+    name = pair.matched[index][0]
+    found = []
+    for k in np.flatnonzero(outlying_changes(np.diff(L), min_step / 2)):
+        at = _bisect(lambda q: float(pair.os_lengths(state(q))[index]), float(qs[k]), float(qs[k + 1]),
+                     float(L[k]), float(L[k + 1]), bisections)
+        sides = [state(at + sgn * side) for sgn in (-1, 1)]
+        la, lb = (float(pair.os_lengths(s)[index]) for s in sides)
+        if abs(lb - la) > min_step and not any(_unfair(pair, s, name) for s in sides):
+            found.append({**meta, "path": name, "at": at, "height": lb - la, "length": [la, lb],
+                          "floor_pct": 100.0 * abs(lb - la) / 2.0 / max(la, lb)})
+    return _without_bands(found, width)
+
+
+def _unfair(pair: ModelPair, state: Any, name: str) -> bool:
+    """Whether OpenSim's path ``name`` in realised ``state`` is no fair test of a tendon: it
+    detours, loops or winds (:func:`o2m.osim.spikes.path_failure`), or its length is not that of
+    the path it draws (:func:`o2m.osim.spikes.drawn_length`, by over
+    :data:`o2m.osim.spikes.BAND_FRACTION`)."""
+    if path_failure(pair.os_model, state, name) is not None:
+        return True
+    length = float(pair.force(name).getLength(state))
+    return abs(drawn_length(pair.os_model, state, name) - length) > BAND_FRACTION * abs(length)
 
 
 def continuous_tendon_front(

@@ -90,7 +90,8 @@ class MuscleError:
 
     ``max_len``/``rms_len`` (m) of the length error, ``max_len_pct``/``rms_len_pct`` of it in
     percent of OpenSim's length; ``length_range`` is OpenSim's (min, max) length (m);
-    ``moment_arms`` maps each compared coordinate to its :class:`MomentArmError`.
+    ``moment_arms`` maps each compared coordinate to its :class:`MomentArmError`; ``worst_pose``
+    the independent coordinate values (rad, m) of the pose of ``max_len_pct``.
     """
 
     kind: str
@@ -100,6 +101,7 @@ class MuscleError:
     rms_len_pct: float
     length_range: tuple[float, float]
     moment_arms: dict[str, MomentArmError] = field(default_factory=dict)
+    worst_pose: dict[str, float] | None = None
 
 
 @dataclass
@@ -332,6 +334,7 @@ def compare_muscles(
     len_min = np.full(nm, np.inf)
     len_max = np.full(nm, -np.inf)
     worst: dict[str, Any] | None = None
+    worst_poses: dict[int, dict[str, float]] = {}
     n_done = skipped = 0
     n_valid = np.zeros(nm, dtype=int)
     spikes: list[dict[str, Any]] = []
@@ -363,6 +366,8 @@ def compare_muscles(
         err_sq += err**2
         pct_sq += pct**2
         np.maximum(max_err, err, out=max_err)
+        for i in np.flatnonzero(pct > max_pct):
+            worst_poses[int(i)] = values
         np.maximum(max_pct, pct, out=max_pct)
         np.minimum(len_min, np.where(valid, l_os, np.inf), out=len_min)
         np.maximum(len_max, np.where(valid, l_os, -np.inf), out=len_max)
@@ -444,6 +449,7 @@ def compare_muscles(
             rms_len_pct=float(np.sqrt(pct_sq[i] / nd[i])),
             length_range=(float(len_min[i]), float(len_max[i])),
             moment_arms=moment_arms[n],
+            worst_pose=worst_poses.get(i),
         )
         for i, (n, kind, _) in enumerate(pair.matched)
     }

@@ -309,6 +309,21 @@ def test_wrapped_mobl_arms_misses_are_opensim_floors_or_known(wrapped_mobl, wrap
     assert not lost, lost
 
 
+def test_a_step_into_a_winding_is_no_floor(wrapped_mobl):
+    """OpenSim's SUP steps by over 20 mm at pro_sup 0.068 rad, where its path starts to wind round
+    its cylinder (tests/osim/test_spikes.py). The comparison leaves the windings out, so the step
+    binds no tendon: the step finder does not count it as a floor (before, a 19.3 % one)."""
+    from o2m.osim.pair import ModelPair
+
+    osim, conv = wrapped_mobl
+    pair = ModelPair(osim, conv.xml)
+    sup = [n for n, _, _ in pair.matched].index("SUP")
+    below, above = (pair.os_lengths(pair.os_state({**pair.defaults, "pro_sup": q}, assemble=False))[sup]
+                    for q in (0.06, 0.08))
+    assert above - below > 0.02, (below, above)
+    assert opensim_length_steps(osim, conv.xml, pair=pair, paths=["SUP"]) == []
+
+
 def test_wrapped_mobl_arms_sup_lengthrange_leaves_out_opensim_windings(wrapped_mobl):
     """SUP's OpenSim path winds round its cylinder for pro_sup above about 0.07 rad (100-106 mm,
     tests/osim/test_spikes.py); its valid lengths stay under 65 mm. The muscle's lengthrange, over

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
+
+import numpy as np
 
 from o2m.gallery import targets_verdict
 from o2m.validate.floors import TargetMiss, target_misses
@@ -71,3 +74,76 @@ def test_two_opposite_steps_close_together_are_a_band_not_a_floor():
     assert len(_without_bands(same_way, BAND_WIDTH[0])) == 2
     partial = [step(0.30, 6e-3), step(0.31, -2e-3)]  # does not come back
     assert len(_without_bands(partial, BAND_WIDTH[0])) == 2
+
+
+def _finite_cylinder_pendulum(path) -> None:
+    """A pendulum (:func:`tests.helpers.pin_pendulum`, q in [0, 1.5] rad, default 1) whose path
+    "m" runs from the ground to the arm over a WrapCylinder (radius 0.06 m, length 0.1 m, axis z,
+    no quadrant) on a carrier sliding along z (coordinate "s", [0, 0.2] m, default 0). The path
+    cuts the cylinder for small q; once the carrier has slid the cylinder's end past the path's
+    plane (s > 0.05 m) OpenSim wraps nothing, so its length steps there, but only at poses where
+    q is small: at the defaults the path clears the cylinder and no sweep from them steps."""
+    import opensim as osim
+
+    from tests.helpers import arm_path_actuator, pin_pendulum
+
+    m, arm = pin_pendulum("finite_cylinder", (0.0, 1.5))
+    m.getCoordinateSet().get("q").setDefaultValue(1.0)
+    carrier = osim.Body("carrier", 0.1, osim.Vec3(0), osim.Inertia(1e-3, 1e-3, 1e-3))
+    m.addBody(carrier)
+    along_z = osim.Vec3(0, -math.pi / 2, 0)  # the slider's x axis along the ground's z
+    slide = osim.SliderJoint("slide", m.getGround(), osim.Vec3(0), along_z, carrier, osim.Vec3(0), along_z)
+    s = slide.updCoordinate()
+    s.setName("s")
+    s.setRangeMin(0.0)
+    s.setRangeMax(0.2)
+    m.addJoint(slide)
+    cylinder = osim.WrapCylinder()
+    cylinder.setName("roll")
+    cylinder.set_radius(0.06)
+    cylinder.set_length(0.1)
+    cylinder.set_translation(osim.Vec3(0.0, -0.01, 0))
+    carrier.addWrapObject(cylinder)
+    pa = arm_path_actuator(m, arm, "P3")
+    pa.updGeometryPath().addPathWrap(cylinder)
+    m.addForce(pa)
+    m.finalizeConnections()
+    m.initSystem()
+    m.printToXML(str(path))
+
+
+def test_a_step_away_from_the_defaults_is_found_through_the_worst_pose(tmp_path):
+    """OpenSim's finite cylinder cuts its wrap off where the carrier slides its end past the path
+    (a step of the length); MuJoCo's cylinder has no ends and keeps wrapping, so the tendon misses
+    the length target at small q. No sweep from the defaults sees the step; the sweep through the
+    tendon's worst pose does, and the miss gets its floor, half the step, there (here about half
+    the miss: MuJoCo follows the wrapped side)."""
+    from o2m.convert.converter import convert
+    from o2m.validate.jumps import opensim_length_steps
+    from tests.helpers import convert_options
+
+    osim_path = tmp_path / "finite_cylinder.osim"
+    _finite_cylinder_pendulum(osim_path)
+    conv = convert(osim_path, tmp_path / "out", convert_options(fit_wraps=False, fit_mechanics=False))
+    assert opensim_length_steps(osim_path, conv.xml) == []
+    steps = opensim_length_steps(osim_path, conv.xml, through={"q": 0.0})
+    assert [s["coordinate"] for s in steps] == ["s"], steps
+    assert abs(steps[0]["at"] - 0.05) < 1e-3 and steps[0]["height"] < -5e-3, steps  # the wrap cut off
+
+    rep = compare_muscles(osim_path, conv.xml, n_poses=60, seed=0)
+    worst = rep.muscles["m"].worst_pose
+    assert worst["s"] > 0.05 and worst["q"] < 0.3, worst  # MuJoCo wraps where OpenSim's cylinder has ended
+    # lines from the worst pose meet the step too, where they cross the cylinder's end
+    from o2m.osim.pair import ModelPair
+    from o2m.validate.jumps import opensim_steps_around
+
+    around = opensim_steps_around(ModelPair(osim_path, conv.xml), "m", worst)
+    assert around and all(st["height"] > 5e-3 for st in around), around  # towards smaller s: the wrap comes back
+    for st in around:
+        a, b = (np.array([st[k][c] for c in ("q", "s")]) for k in ("through", "towards"))
+        assert abs((a + st["at"] / np.linalg.norm(b - a) * (b - a))[1] - 0.05) < 1e-6, st
+    (miss,) = [m for m in target_misses(osim_path, conv.xml, rep, poses=51) if m.coordinate is None]
+    assert miss.floor_through_worst and miss.floor_coordinate == "s", miss
+    # MuJoCo's tendon at the worst pose is OpenSim's wrapped path, the step's upper side there
+    assert abs(miss.floor - miss.value / 2) < 0.05 * miss.value, miss.describe()
+    assert "through its worst pose" in miss.describe()
