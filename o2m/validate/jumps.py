@@ -230,7 +230,7 @@ def opensim_length_steps(
         if not swept:
             continue
         qs = pair.sweep_values(c, step, linear_step)
-        L = np.array([pair.os_lengths(state(cname, q)) for q in qs])
+        L = np.array([_lengths_at(pair, lambda q: state(cname, q), q) for q in qs])  # noqa: B023
         linear = int(c.getMotionType() == TRANSLATIONAL)
         for i in swept:
             out += _steps_on_sweep(pair, i, qs, L[:, i], lambda q: state(cname, q),  # noqa: B023
@@ -279,7 +279,7 @@ def opensim_steps_around(
                                  assemble=False)
 
         ds = np.linspace(0.0, span, samples)
-        L = np.array([pair.os_lengths(state(d))[index] for d in ds])
+        L = np.array([_lengths_at(pair, state, d)[index] for d in ds])
         out += _steps_on_sweep(pair, index, ds, L, state,
                                {"coordinate": None, "through": dict(pose),
                                 "towards": dict(zip(pair.indep_names, end.tolist(), strict=True))},
@@ -299,14 +299,26 @@ def _steps_on_sweep(pair: ModelPair, index: int, qs: np.ndarray, L: np.ndarray, 
     name = pair.matched[index][0]
     found = []
     for k in np.flatnonzero(outlying_changes(np.diff(L), min_step / 2)):
-        at = _bisect(lambda q: float(pair.os_lengths(state(q))[index]), float(qs[k]), float(qs[k + 1]),
+        at = _bisect(lambda q: float(_lengths_at(pair, state, q)[index]), float(qs[k]), float(qs[k + 1]),
                      float(L[k]), float(L[k + 1]), bisections)
-        sides = [state(at + sgn * side) for sgn in (-1, 1)]
+        try:
+            sides = [state(at + sgn * side) for sgn in (-1, 1)]
+        except Exception:  # OpenSim cannot assemble beside it: no step measured (a floor is a lower bound)
+            continue
         la, lb = (float(pair.os_lengths(s)[index]) for s in sides)
         if abs(lb - la) > min_step and not any(_unfair(pair, s, name) for s in sides):
             found.append({**meta, "path": name, "at": at, "height": lb - la, "length": [la, lb],
                           "floor_pct": 100.0 * abs(lb - la) / 2.0 / max(la, lb)})
     return _without_bands(found, width)
+
+
+def _lengths_at(pair: ModelPair, state: Callable[[float], Any], q: float) -> np.ndarray:
+    """OpenSim's path lengths (m, (n paths,)) in ``state(q)``; NaN where it cannot assemble
+    (NaN changes are no outlying change: a step next to a failure goes unmeasured)."""
+    try:
+        return pair.os_lengths(state(q))
+    except Exception:
+        return np.full(len(pair.matched), np.nan)
 
 
 def _unfair(pair: ModelPair, state: Any, name: str) -> bool:
