@@ -251,8 +251,10 @@ WRAPPED_MOBL_FLOORS = {(m, "shoulder_elv") for m in ("PECM2", "PECM3", "LAT1", "
 #: the same on both).
 #: Lengths beyond the 1 % target for any continuous tendon: OpenSim's own length steps near their
 #: worst poses (quick and full size, seed 0: PECM1 16.2 %, where a finite cylinder's end crosses
-#: the path; LAT1 9.9, DELT3 8.9, LAT3 8.6, LAT2 7.6, TMAJ 3.3 %; docs/muscle-paths.md).
-WRAPPED_MOBL_IMPOSSIBLE = {"PECM1", "LAT1", "LAT2", "LAT3", "DELT3", "TMAJ"}
+#: the path; LAT1 9.9, DELT3 8.9, LAT3 8.6, LAT2 7.6 %; docs/muscle-paths.md). Those floors are
+#: found from the worst pose, which the fit's processor moves a little, so the smaller ones (TMAJ
+#: 3.3 %) are not asserted.
+WRAPPED_MOBL_IMPOSSIBLE = {"PECM1", "LAT1", "LAT2", "LAT3", "DELT3"}
 WRAPPED_MOBL_OWN = {(m, None) for m in ("LAT3", "LAT1", "PECM1", "LAT2", "BIClong", "TMIN", "PECM2", "SUP",
                                         "TMAJ", "CORB", "INFSP", "SUBSC", "PECM3", "TRIlong", "DELT3", "DELT1")} | {
     ("TMIN", "elv_angle"), ("TMIN", "shoulder_rot"), ("TMIN", "shoulder_elv"), ("LAT1", "elv_angle"),
