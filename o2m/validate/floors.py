@@ -21,7 +21,7 @@ from o2m.osim.pair import ModelPair
 from o2m.validate.jumps import continuous_tendon_front, opensim_length_steps, opensim_steps_around
 from o2m.validate.muscles import LEN_PCT, MA_MAX_MM, MA_P95_MM, MuscleReport
 
-__all__ = ["TargetMiss", "target_misses"]
+__all__ = ["TargetMiss", "length_misses", "target_misses"]
 
 #: Poses of the one-coordinate sweep that measures a moment-arm floor.
 FRONT_POSES = 301
@@ -78,10 +78,16 @@ class TargetMiss:
         return f"{what} ({floor}: {verdict})"
 
 
-def _length_misses(report: MuscleReport, pair: ModelPair, steps: list[dict]) -> list[TargetMiss]:
-    """Every path over the length target, with the largest step of OpenSim's length along one
-    coordinate from the defaults (``steps``) or through the pose of the path's worst error, or,
-    where those leave the miss o2m's, along lines from that pose."""
+def length_misses(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike, report: MuscleReport, *,
+                  pair: ModelPair | None = None, steps: list[dict] | None = None,
+                  assembly_accuracy: float | None = 1e-12) -> list[TargetMiss]:
+    """Every path of ``report`` (:func:`~o2m.validate.compare_muscles` of the two models) over the
+    length target, largest first, with the largest step of OpenSim's length along one coordinate
+    from the defaults (``steps``, measured where None) or through the pose of the path's worst
+    error, or, where those leave the miss o2m's, along lines from that pose (its floor).
+    ``pair``: the two models already loaded."""
+    pair = pair or ModelPair(osim_path, mjcf_path, assembly_accuracy)
+    steps = opensim_length_steps(osim_path, mjcf_path, pair=pair) if steps is None else steps
     out = []
     for name, err in report.muscles.items():
         if err.max_len_pct <= LEN_PCT:
@@ -93,7 +99,7 @@ def _length_misses(report: MuscleReport, pair: ModelPair, steps: list[dict]) -> 
             if not _length_miss(name, err.max_len_pct, own).at_floor:  # the lines cost most: only if they can tell
                 own += opensim_steps_around(pair, name, err.worst_pose)
         out.append(_length_miss(name, err.max_len_pct, own))
-    return out
+    return sorted(out, key=lambda m: -m.value)
 
 
 def _length_miss(name: str, value: float, steps: list[dict]) -> TargetMiss:
@@ -139,6 +145,6 @@ def target_misses(osim_path: str | os.PathLike, mjcf_path: str | os.PathLike, re
         return []
     pair = ModelPair(osim_path, mjcf_path, assembly_accuracy)
     steps = opensim_length_steps(osim_path, mjcf_path, pair=pair)
-    lengths = sorted(_length_misses(report, pair, steps), key=lambda m: -m.value)
+    lengths = length_misses(osim_path, mjcf_path, report, pair=pair, steps=steps)
     arms = sorted(_arm_misses(report, pair, steps, poses), key=lambda m: -m.value)
     return lengths + arms
