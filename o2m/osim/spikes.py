@@ -19,10 +19,10 @@ from o2m.transforms import body_fixed_xyz
 
 __all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_CONSISTENCY", "FULL_TURN",
            "LOOP_KINDS", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "arc_turn", "band_suspects",
-           "current_path_points", "drawn_length", "one_pose_spikes", "opensim_detours", "opensim_failures",
-           "opensim_inconsistencies", "opensim_loops", "opensim_spikes", "opensim_windings", "outlying_changes",
-           "path_detour", "path_failure", "path_loop", "path_winding", "runs_cross", "wrap_arcs", "wrap_contacts",
-           "wrap_runs"]
+           "current_path_points", "drawn_length", "length_inconsistency", "one_pose_spikes", "opensim_detours",
+           "opensim_failures", "opensim_inconsistencies", "opensim_loops", "opensim_spikes", "opensim_windings",
+           "outlying_changes", "path_detour", "path_failure", "path_loop", "path_winding", "runs_cross", "wrap_arcs",
+           "wrap_contacts", "wrap_runs"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -382,10 +382,20 @@ def opensim_inconsistencies(pair: ModelPair, values: Mapping[str, float], muscle
     for i in muscles:
         name, _, force = pair.matched[int(i)]
         length = float(lengths[int(i)]) if lengths is not None else float(force.getLength(state))
-        drawn = drawn_length(pair.os_model, state, name)
-        if abs(drawn - length) > BAND_FRACTION * abs(length):
-            out[int(i)] = {"test": "inconsistent", "length": length, "drawn": drawn}
+        found = length_inconsistency(pair.os_model, state, name, length)
+        if found is not None:
+            out[int(i)] = found
     return out
+
+
+def length_inconsistency(os_model: Any, state: Any, name: str, length: float) -> dict[str, Any] | None:
+    """{"test": "inconsistent", "length", "drawn" (m)} where OpenSim's ``length`` of the path
+    force ``name`` in realised ``state`` differs from that of the path it draws
+    (:func:`drawn_length`) by over :data:`BAND_FRACTION` of it, else None."""
+    drawn = drawn_length(os_model, state, name)
+    if abs(drawn - length) > BAND_FRACTION * abs(length):
+        return {"test": "inconsistent", "length": float(length), "drawn": drawn}
+    return None
 
 
 def path_failure(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:

@@ -18,11 +18,10 @@ from o2m.mj.tendons import tendon_length_steps
 from o2m.osim.pair import ModelPair
 from o2m.osim.runtime import TRANSLATIONAL, sample_bounds
 from o2m.osim.spikes import (
-    BAND_FRACTION,
     BAND_STEPS,
     SPIKE_LINEAR_STEP,
     SPIKE_STEP,
-    drawn_length,
+    length_inconsistency,
     one_pose_spikes,
     opensim_loops,
     opensim_windings,
@@ -324,12 +323,9 @@ def _lengths_at(pair: ModelPair, state: Callable[[float], Any], q: float) -> np.
 def _unfair(pair: ModelPair, state: Any, name: str) -> bool:
     """Whether OpenSim's path ``name`` in realised ``state`` is no fair test of a tendon: it
     detours, loops or winds (:func:`o2m.osim.spikes.path_failure`), or its length is not that of
-    the path it draws (:func:`o2m.osim.spikes.drawn_length`, by over
-    :data:`o2m.osim.spikes.BAND_FRACTION`)."""
-    if path_failure(pair.os_model, state, name) is not None:
-        return True
-    length = float(pair.force(name).getLength(state))
-    return abs(drawn_length(pair.os_model, state, name) - length) > BAND_FRACTION * abs(length)
+    the path it draws (:func:`o2m.osim.spikes.length_inconsistency`)."""
+    return (path_failure(pair.os_model, state, name) is not None
+            or length_inconsistency(pair.os_model, state, name, float(pair.force(name).getLength(state))) is not None)
 
 
 def continuous_tendon_front(
