@@ -27,9 +27,10 @@ from o2m.osim.couplers import coupler_chain, satisfy_constraints
 from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
 from o2m.osim.names import opensim_coordinate_names
 from o2m.osim.simulate import tendon_force
-from o2m.osim.spikes import path_winding, wrap_arcs
+from o2m.osim.spikes import length_inconsistency, path_failure
 
-__all__ = ["FV_FIT_RANGE", "N_EVAL", "MuscleSample", "measure_muscles", "sample_lengths"]
+__all__ = ["FV_FIT_RANGE", "N_EVAL", "LengthSamples", "MuscleSample", "length_island", "measure_muscles",
+           "sample_lengths"]
 
 #: Lengths (across the lengthrange) at which OpenSim's forces are computed and errors reported.
 N_EVAL = 197
@@ -42,6 +43,35 @@ N_EVAL = 197
 FV_FIT_RANGE = 0.2
 #: At most this many range corners are evaluated for one set of spanned coordinates.
 MAX_CORNERS = 256
+#: A muscle's longest (or shortest) sampled lengths are an island, left out of its lengthrange
+#: (:func:`length_island`), when they are at most this fraction of its samples ...
+ISLAND_FRACTION = 0.02
+#: ... beyond a gap in the sorted lengths wider than this fraction of the other lengths' spread ...
+ISLAND_GAP = 0.5
+#: ... and OpenSim's length steps by over this fraction of the gap within one of ISLAND_LINE_STEPS
+#: steps along the straight line (in coordinates) from each island pose to its nearest other
+#: sampled pose: a continuous length over the coordinates' box takes every value between its
+#: samples, so only a step leaves such a gap.
+ISLAND_STEP = 0.5
+ISLAND_LINE_STEPS = 64
+#: The tests of OpenSim's path (``test`` of :func:`~o2m.osim.spikes.path_failure` and
+#: :func:`~o2m.osim.spikes.length_inconsistency`) by their codes in :attr:`LengthSamples.failures`
+#: (0: none), and how the report names them.
+FAILURE_TESTS = {"detour": 1, "loop": 2, "winding": 3, "inconsistent": 4}
+FAILURE_NAMES = {1: "detour", 2: "loop", 3: "winding", 4: "length not of its drawn path"}
+
+
+@dataclass
+class LengthSamples:
+    """OpenSim's MTU lengths over sampled poses: ``poses`` (n, independent coordinates, rad or m),
+    ``lengths`` (n, muscles, m; NaN where left out), ``failures`` (n, muscles) the code
+    (:data:`FAILURE_TESTS`) of the test OpenSim's path fails there, 0 for none, and ``n_failed``
+    the poses OpenSim could not assemble (whole rows of NaN)."""
+
+    poses: np.ndarray
+    lengths: np.ndarray
+    failures: np.ndarray
+    n_failed: int
 
 
 @dataclass
@@ -118,11 +148,13 @@ class _PoseModel:
         self.model.realizePosition(st)
         return st
 
-    def lengths(self, poses: np.ndarray) -> np.ndarray:
-        """(n_poses, n_muscles) MTU lengths; a pose OpenSim fails to assemble gives NaNs, and so
-        does a muscle whose path winds round a wrap there (:func:`~o2m.osim.spikes.path_winding`):
-        no tendon reaches that length, so it must not stretch the muscle's lengthrange."""
+    def lengths(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(n_poses, n_muscles) MTU lengths (m) and failure codes (:data:`FAILURE_TESTS`). A pose
+        OpenSim fails to assemble gives NaNs; a code marks a muscle whose path fails as a path there
+        (:func:`~o2m.osim.spikes.path_failure`, :func:`~o2m.osim.spikes.length_inconsistency`,
+        the comparison's own tests)."""
         out = np.full((len(poses), len(self.muscles)), np.nan)
+        codes = np.zeros(out.shape, dtype=np.int8)
         for k, q in enumerate(poses):
             try:
                 st = self.pose(q)
@@ -130,15 +162,28 @@ class _PoseModel:
                 continue
             out[k] = [m.getLength(st) for m in self.muscles]
             for i in self.wrapped:
-                if path_winding(wrap_arcs(self.model, st, self.muscle_names[i])) is not None:
-                    out[k, i] = np.nan
+                name = self.muscle_names[i]
+                found = path_failure(self.model, st, name) or length_inconsistency(self.model, st, name, out[k, i])
+                if found is not None:
+                    codes[k, i] = FAILURE_TESTS[found["test"]]
+        return out, codes
+
+    def length_along(self, muscle: int, start: np.ndarray, end: np.ndarray, steps: int) -> np.ndarray:
+        """OpenSim's MTU length (m) of muscle index ``muscle`` at ``steps`` + 1 poses evenly along
+        the straight line from pose ``start`` to ``end``; NaN where a pose fails to assemble."""
+        out = np.full(steps + 1, np.nan)
+        for k, t in enumerate(np.linspace(0.0, 1.0, steps + 1)):
+            try:
+                out[k] = self.muscles[muscle].getLength(self.pose(start + t * (end - start)))
+            except Exception:  # assembly failure
+                continue
         return out
 
 
 _WORKER_MODELS: dict[str, _PoseModel] = {}
 
 
-def _worker_lengths(osim_path: str, poses: np.ndarray) -> np.ndarray:
+def _worker_lengths(osim_path: str, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     pm = _WORKER_MODELS.get(osim_path)
     if pm is None:
         pm = _WORKER_MODELS[osim_path] = _PoseModel(osim_path)
@@ -160,19 +205,18 @@ def _corner_poses(bounds: np.ndarray, defaults: np.ndarray, coords: tuple[int, .
     return poses
 
 
-def _lengths_parallel(pool, osim_path: str, poses: np.ndarray, n_chunks: int) -> np.ndarray:
+def _lengths_parallel(pool, osim_path: str, poses: np.ndarray, n_chunks: int) -> tuple[np.ndarray, np.ndarray]:
     chunks = [c for c in np.array_split(poses, n_chunks) if len(c)]
-    futures = [pool.submit(_worker_lengths, osim_path, c) for c in chunks]
-    return np.concatenate([f.result() for f in futures], axis=0)
+    results = [f.result() for f in [pool.submit(_worker_lengths, osim_path, c) for c in chunks]]
+    return np.concatenate([r[0] for r in results], axis=0), np.concatenate([r[1] for r in results], axis=0)
 
 
 def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses: int, seed: int, processes: int,
-                   get_pool: Callable[[], Any]) -> tuple[np.ndarray, int]:
-    """MTU lengths (poses, muscles) of the model ``pm`` (read from ``osim_path``) at ``n_poses``
-    random poses (seeded by ``seed``), the default pose, each coordinate at its range ends and the
-    range corners of the coordinates each ``supported`` muscle spans; and the number of poses OpenSim
-    failed to assemble (their rows are NaN). With ``processes`` > 1 the poses are shared out on the
-    pool ``get_pool()``."""
+                   get_pool: Callable[[], Any]) -> LengthSamples:
+    """MTU lengths of the model ``pm`` (read from ``osim_path``) at ``n_poses`` random poses
+    (seeded by ``seed``), the default pose, each coordinate at its range ends and the range corners
+    of the coordinates each ``supported`` muscle spans. With ``processes`` > 1 the poses are shared
+    out on the pool ``get_pool()``."""
     nq = len(pm.indep)
     rng = np.random.default_rng(seed)
     random_poses = rng.uniform(pm.bounds[:, 0], pm.bounds[:, 1], size=(n_poses, nq))
@@ -183,7 +227,7 @@ def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses
             q[i] = v
             ends.append(q)
     ends = np.array(ends).reshape(-1, nq)
-    len_ends = pm.lengths(ends)
+    len_ends, fail_ends = pm.lengths(ends)
     # coordinates each muscle spans: its length changes when the coordinate goes to a range end
     nm = len(pm.muscles)
     with np.errstate(invalid="ignore"):  # inf - inf where a length is not finite (measure_muscles names the muscle)
@@ -194,27 +238,83 @@ def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses
     rest = np.concatenate([random_poses, *corner_poses], axis=0)
     if processes > 1 and pm.couplers is None and len(rest) >= 200:
         # OpenSim's assembler is the slow part (~5 ms a pose): share it out
-        len_rest = _lengths_parallel(get_pool(), osim_path, rest, 2 * processes)
+        len_rest, fail_rest = _lengths_parallel(get_pool(), osim_path, rest, 2 * processes)
     else:
-        len_rest = pm.lengths(rest)
-    all_lengths = np.concatenate([len_ends, len_rest], axis=0)
-    n_failed = int(np.isnan(all_lengths).all(axis=1).sum()) if all_lengths.size else 0
-    return all_lengths, n_failed
+        len_rest, fail_rest = pm.lengths(rest)
+    lengths = np.concatenate([len_ends, len_rest], axis=0)
+    failures = np.concatenate([fail_ends, fail_rest], axis=0)
+    n_failed = int(np.isnan(lengths).all(axis=1).sum()) if lengths.size else 0
+    # no tendon reaches the length of a path that fails as a path: it must not stretch the lengthrange
+    lengths[failures > 0] = np.nan
+    return LengthSamples(np.concatenate([ends, rest], axis=0), lengths, failures, n_failed)
 
 
-def _lengthranges(all_lengths: np.ndarray, supported: list[int], names: list[str],
-                  n_failed: int) -> tuple[np.ndarray, dict[str, list[str]]]:
+def length_island(poses: np.ndarray, lengths: np.ndarray,
+                  length_along: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> dict[str, Any] | None:
+    """The samples at one end of a muscle's sorted ``lengths`` (n,) m, at ``poses`` (n, nq), that
+    OpenSim reaches only through a step of its length: at most :data:`ISLAND_FRACTION` of them,
+    beyond a gap over :data:`ISLAND_GAP` of the other lengths' spread, each with a step of over
+    :data:`ISLAND_STEP` of the gap between two of the lengths ``length_along(start, end)`` gives
+    along the line from its pose to the nearest other pose (coordinates scaled by their spread).
+    A muscle works at the lengths its poses fill; OpenSim's wrap flickering on the long way round
+    for a moment (MoBL-ARMS's TMIN: 0.30 m at 2 of 375 poses, 0.10-0.16 m elsewhere) would
+    otherwise spread its lengthrange, and with it the force fit, over lengths it never works at.
+    Returns {"index" (island sample indices), "gap", "rest" (m, the other lengths' min and max),
+    "step" (m, the smallest island's largest one-step change)}, or None."""
+    finite = np.flatnonzero(np.isfinite(lengths))
+    order = finite[np.argsort(lengths[finite])]
+    n = len(order)
+    k_max = int(ISLAND_FRACTION * n)
+    if k_max < 1:
+        return None
+    values = lengths[order]
+    scale = np.maximum(np.ptp(poses[finite], axis=0), 1e-12)
+    for top in (True, False):
+        ranked = values[::-1] if top else values
+        gaps = np.abs(np.diff(ranked[:k_max + 1]))
+        k = int(np.argmax(gaps)) + 1  # the island: the first k of ranked
+        rest = ranked[k:]
+        gap = float(gaps[k - 1])
+        if gap <= ISLAND_GAP * float(np.ptp(rest)):
+            continue
+        island = order[::-1][:k] if top else order[:k]
+        others = order[::-1][k:] if top else order[k:]
+        steps = []
+        for j in island:
+            near = others[np.argmin(np.linalg.norm((poses[others] - poses[j]) / scale, axis=1))]
+            along = length_along(poses[j], poses[near])
+            steps.append(float(np.nanmax(np.abs(np.diff(along)))) if np.isfinite(along).sum() > 1 else 0.0)
+        if min(steps) > ISLAND_STEP * gap:
+            return {"index": island, "gap": gap, "rest": (float(rest.min()), float(rest.max())),
+                    "step": min(steps)}
+    return None
+
+
+def _lengthranges(samples: LengthSamples, supported: list[int], names: list[str],
+                  pm: _PoseModel | None = None) -> tuple[np.ndarray, dict[str, list[str]]]:
     """(lengthrange (muscles, 2) m, notes per muscle) of the ``supported`` muscles (named ``names``)
-    from the sampled lengths; a constant length is padded."""
+    from the sampled lengths, leaving out OpenSim's path failures and, with ``pm`` to walk its
+    lines, a :func:`length_island`; a constant length is padded."""
     notes = {n: [] for n in names}
     lr = np.zeros((len(names), 2))
     for k, i in enumerate(supported):
-        col = all_lengths[:, i]
-        wound = int(np.isnan(col).sum()) - n_failed
+        col = samples.lengths[:, i].copy()
+        codes = samples.failures[:, i]
+        if codes.any():
+            kinds = ", ".join(f"{int((codes == c).sum())} {FAILURE_NAMES[c]}" for c in sorted(set(codes[codes > 0])))
+            notes[names[k]].append(f"{int((codes > 0).sum())} sampled pose(s) left out of the lengthrange where "
+                                   f"OpenSim's path fails as a path ({kinds}; o2m.osim.spikes)")
+        island = None if pm is None else length_island(
+            samples.poses, col, lambda a, b, i=i: pm.length_along(i, a, b, ISLAND_LINE_STEPS))
+        if island is not None:
+            idx = island["index"]
+            notes[names[k]].append(
+                f"{len(idx)} sampled pose(s) left out of the lengthrange: OpenSim's length there "
+                f"({np.min(col[idx]):.4g}-{np.max(col[idx]):.4g} m) lies {island['gap']:.3g} m beyond its other "
+                f"lengths ({island['rest'][0]:.4g}-{island['rest'][1]:.4g} m), reached only through a step of "
+                f"{island['step']:.3g} m (o2m.convert.muscle_samples.length_island)")
+            col[idx] = np.nan
         col = col[np.isfinite(col)]
-        if wound:
-            notes[names[k]].append(f"{wound} sampled pose(s) left out of the lengthrange where OpenSim's path "
-                                   "winds over a full turn round a wrap (o2m.osim.spikes.path_winding)")
         lo, hi = float(col.min()), float(col.max())
         if hi - lo < 1e-6:
             pad = max(1e-4, 0.005 * hi)
@@ -222,8 +322,8 @@ def _lengthranges(all_lengths: np.ndarray, supported: list[int], names: list[str
                                    f"lengthrange padded by {pad:.3g} m")
             lo, hi = lo - pad, hi + pad
         lr[k] = lo, hi
-        if n_failed:
-            notes[names[k]].append(f"{n_failed} sampled pose(s) failed to assemble and were left out")
+        if samples.n_failed:
+            notes[names[k]].append(f"{samples.n_failed} sampled pose(s) failed to assemble and were left out")
     return lr, notes
 
 
@@ -374,10 +474,10 @@ def _muscle_elements(doc, names: list[str]) -> dict[str, etree._Element]:
     return out
 
 
-def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_lengths: np.ndarray,
-                    n_failed: int, seed: int) -> list[MuscleSample]:
+def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], samples: LengthSamples,
+                    seed: int) -> list[MuscleSample]:
     """OpenSim's measurements of the ``supported`` muscles of ``pm`` (indices into its muscles), in
-    order: lengthranges from ``all_lengths`` (:func:`sample_lengths`), static forces over them on the
+    order: lengthranges from ``samples`` (:func:`sample_lengths`), static forces over them on the
     bench, time constants and force-velocity curves."""
     doc = load_document(osim_path)
     names = [pm.muscle_names[i] for i in supported]
@@ -386,13 +486,13 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], all_le
     if missing:
         raise ModelFileError(f"{osim_path}: muscle(s) {', '.join(missing)} not found in the ForceSet")
     for k, i in enumerate(supported):
-        if not np.isfinite(all_lengths[:, i]).any():
-            winds = ", or its path winds over a full turn round a wrap" if i in pm.wrapped else ""
-            raise doc.error(elements[names[k]], f"has no finite length at any of the {len(all_lengths)} poses "
+        if not np.isfinite(samples.lengths[:, i]).any():
+            winds = ", or its path fails as a path round its wraps" if i in pm.wrapped else ""
+            raise doc.error(elements[names[k]], f"has no finite length at any of the {len(samples.lengths)} poses "
                                                 f"sampled (OpenSim gives inf or NaN: a path point too far out?"
                                                 f"{winds})")
     bench = _Bench(doc, [elements[n] for n in names])
-    lr, notes = _lengthranges(all_lengths, supported, names, n_failed)
+    lr, notes = _lengthranges(samples, supported, names, pm)
     grid = lr[:, :1] + (lr[:, 1:] - lr[:, :1]) * np.linspace(0.0, 1.0, N_EVAL)[None, :]
     f_act, a_act = bench.forces(grid, 1.0)
     f_pas, a_pas = bench.forces(grid, 0.0)

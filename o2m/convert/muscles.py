@@ -22,7 +22,9 @@ Thelen2003Muscle_Deprecated, MeyerFregly2016Muscle) to a :class:`MuscleParams`:
 
 * ``lengthrange``: the smallest and largest MTU length OpenSim computes over random poses
   (every independent coordinate uniform in its range, seeded), the default pose, each
-  coordinate at its range ends, and the range corners of the coordinates the muscle spans.
+  coordinate at its range ends, and the range corners of the coordinates the muscle spans;
+  leaving out the samples where OpenSim's path fails as a path and an island of lengths it
+  reaches only through a step (:func:`o2m.convert.muscle_samples.length_island`).
 * ``force`` = max isometric force; ``timeconst`` from OpenSim's activation dynamics.
 * ``range, lmin, lmax, fpmax`` by bounded least squares so that MuJoCo's static force matches
   OpenSim's static-equilibrium tendon force over the lengthrange at activation 1 (active +
@@ -487,13 +489,13 @@ def fit_muscles(osim_path: str | os.PathLike, *, n_poses: int = 300, seed: int =
 
     try:
         # -- 1. MTU lengths over sampled poses ----------------------------------------------
-        all_lengths, n_failed = sample_lengths(pm, osim_path, supported, n_poses, seed, processes, get_pool)
+        samples = sample_lengths(pm, osim_path, supported, n_poses, seed, processes, get_pool)
         timings["lengthrange"] = time.perf_counter() - t0
         bar.update()
 
         # -- 2. OpenSim's static forces on the bench, time constants, force-velocity --------
         t1 = time.perf_counter()
-        tasks = measure_muscles(osim_path, pm, supported, all_lengths, n_failed, seed)
+        tasks = measure_muscles(osim_path, pm, supported, samples, seed)
         timings["opensim_forces"] = time.perf_counter() - t1
         bar.update()
 

@@ -1,5 +1,6 @@
 """OpenSim's side of the muscle fit (o2m.convert.muscle_samples): the bench reproduces the full
-model's static tendon forces."""
+model's static tendon forces, and an island of lengths OpenSim reaches only through a step is
+told from a steep but continuous tail."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from o2m.convert.muscle_samples import _Bench, _muscle_elements
+from o2m.convert.muscle_samples import ISLAND_LINE_STEPS, _Bench, _muscle_elements, length_island
 from tests.helpers import model_file
 
 
@@ -105,3 +106,54 @@ def test_bench_reads_delp1990_forces_opensim_cannot_give_through_its_dynamics(ar
         expected = [[_delp_static_force(opensim, m, x, a) for x in lengths[k]] for k, m in enumerate(bench.muscles)]
         np.testing.assert_allclose(forces, expected, atol=0.02)
         assert np.ptp(forces) > 100  # (not all slack)
+
+
+def _island_of(length, n=400, seed=0):
+    """length_island over ``n`` uniform poses of the unit square for a length function ``length(q)``
+    (q (k, 2) -> (k,) m)."""
+    poses = np.random.default_rng(seed).uniform(0.0, 1.0, size=(n, 2))
+
+    def along(a, b):
+        t = np.linspace(0.0, 1.0, ISLAND_LINE_STEPS + 1)[:, None]
+        return length(a + t * (b - a))
+
+    return poses, length(poses), length_island(poses, length(poses), along)
+
+
+def test_an_island_reached_through_a_step_is_found():
+    """A length that steps up by 0.15 m in a thin corner of the poses (as OpenSim's wrap taking a
+    path the long way round for a moment) leaves a gap in the sorted lengths: those samples are
+    an island, and the rest keeps its own range."""
+    def length(q):
+        return 0.1 + 0.05 * q[:, 0] + 0.15 * (q[:, 1] > 0.995)
+
+    poses, lengths, island = _island_of(length)
+    corner = np.flatnonzero(poses[:, 1] > 0.995)
+    assert 1 <= len(corner) <= 8, len(corner)
+    assert island is not None
+    assert sorted(island["index"]) == sorted(corner)
+    assert island["step"] == pytest.approx(0.15, abs=0.01)
+    assert island["rest"][1] < 0.151
+
+
+def test_a_steep_continuous_tail_is_no_island(monkeypatch):
+    """The same corner reached by a steep ramp instead of a step leaves a like gap in the sorted
+    lengths, but OpenSim's length takes every value in between along the lines: kept."""
+    import o2m.convert.muscle_samples as samples
+
+    def length(q):
+        return 0.1 + 0.05 * q[:, 0] + 0.15 * np.clip((q[:, 1] - 0.99) / 0.005, 0.0, 1.0)
+
+    assert _island_of(length)[2] is None
+    monkeypatch.setattr(samples, "ISLAND_STEP", 0.0)  # the gap alone would make it one
+    island = _island_of(length)[2]
+    assert island is not None and island["gap"] > 0.05 and island["step"] < 0.01, island
+
+
+def test_an_island_at_the_short_end_and_too_few_samples():
+    def length(q):
+        return 0.3 + 0.05 * q[:, 0] - 0.2 * (q[:, 1] < 0.004)
+
+    poses, _, island = _island_of(length)
+    assert island is not None and set(island["index"]) == set(np.flatnonzero(poses[:, 1] < 0.004))
+    assert _island_of(length, n=40)[2] is None  # 2 % of 40 samples is under one
