@@ -157,3 +157,18 @@ def test_an_island_at_the_short_end_and_too_few_samples():
     poses, _, island = _island_of(length)
     assert island is not None and set(island["index"]) == set(np.flatnonzero(poses[:, 1] < 0.004))
     assert _island_of(length, n=40)[2] is None  # 2 % of 40 samples is under one
+
+
+def test_lengthranges_leave_out_path_failures_and_name_them():
+    """A sample whose OpenSim path fails as a path (here a loop and a length not of its drawn
+    path) is left out of the lengthrange; the note counts each kind."""
+    from o2m.convert.muscle_samples import FAILURE_TESTS, LengthSamples, _lengthranges
+
+    lengths = np.array([[0.10], [0.12], [0.30], [0.11], [0.25]])
+    failures = np.zeros((5, 1), dtype=np.int8)
+    failures[2, 0], failures[4, 0] = FAILURE_TESTS["loop"], FAILURE_TESTS["inconsistent"]
+    lengths[failures > 0] = np.nan  # as sample_lengths leaves them
+    lr, notes = _lengthranges(LengthSamples(np.zeros((5, 1)), lengths, failures, 0), [0], ["m"])
+    assert tuple(lr[0]) == (0.10, 0.12)
+    assert notes["m"] == ["2 sampled pose(s) left out of the lengthrange where OpenSim's path fails as a path "
+                          "(1 loop, 1 length not of its drawn path; o2m.osim.spikes)"]
