@@ -48,8 +48,10 @@ def cmd_convert(a: argparse.Namespace) -> int:
     result = convert(osim, a.output, options, geometry_dirs=geometry)
     print(result.report.summary() if a.verbose else
           f"wrote {result.xml} ({result.report.seconds:.2f} s; {len(result.report.approximations)} "
-          f"approximations, {len(result.report.skipped)} elements skipped; see "
-          f"{result.xml.with_suffix('.report.txt')})")
+          f"approximations, {len(result.report.skipped)} elements skipped, {len(result.report.warnings)} "
+          f"warnings; see {result.xml.with_suffix('.report.txt')})")
+    if not a.verbose:
+        _print_warnings(result.report.warnings)
     if a.opensim_muscles:
         from o2m.convert.opensim_muscles import write_opensim_muscles
         from o2m.mj.schutte_plugin import load
@@ -74,6 +76,18 @@ def cmd_convert(a: argparse.Namespace) -> int:
             if a.verbose:
                 print("\n".join(format_moment_arm_report(rows)))
     return 0
+
+
+#: The conversion's warnings printed after its one-line summary; the report lists them all.
+SHOWN_WARNINGS = 5
+
+
+def _print_warnings(warnings: list[str]) -> None:
+    """The first :data:`SHOWN_WARNINGS` of a conversion's ``warnings`` on stderr."""
+    for w in warnings[:SHOWN_WARNINGS]:
+        print(f"warning: {w}", file=sys.stderr)
+    if len(warnings) > SHOWN_WARNINGS:
+        print(f"warning: ... and {len(warnings) - SHOWN_WARNINGS} more (see the report)", file=sys.stderr)
 
 
 def cmd_validate(a: argparse.Namespace) -> int:

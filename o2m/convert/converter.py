@@ -160,6 +160,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
     reader.names = skel.names
     paths = read_paths(reader, builder.ref)
     wraps = read_wrap_objects(reader)
+    wrap_skipped = _unused_wraps(wraps, paths)
     narrow_wrap_ranges(builder, paths, wraps, str(osim))
     vias = add_length_vias(builder, paths, wraps, str(osim)) if options.length_vias else []
     splits = add_wrap_splits(builder, paths, wraps, str(osim)) if options.length_vias else []
@@ -167,8 +168,8 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
                         carrier_tolerance=options.carrier_tolerance)
     # after the muscles: their actuators stay first
     force_conv = forces.add_forces(builder, reader, bushing_tolerance=options.bushing_tolerance)
-    muscle_skipped = _fit_mechanics(result, osim, paths, doc) if options.fit_mechanics and any(
-        p.owner_type in MUSCLE_TYPES for p in paths) else []
+    muscle_skipped, muscle_warnings = _fit_mechanics(result, osim, paths, doc) if options.fit_mechanics and any(
+        p.owner_type in MUSCLE_TYPES for p in paths) else ([], [])
     search = [osim.parent, osim.parent / "Geometry"] + [Path(d) for d in geometry_dirs]
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".o2m-", dir=out_dir.parent) as tmp:
@@ -225,7 +226,7 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
         warnings = massless + [f"{s.element} {s.name}: {s.reason}" for s in geom_skipped if s.element == "Mesh"]
         warnings += [f"Coordinate {c.name}: prescribed motion (a function of time) not converted; its MuJoCo "
                      "joint is free" for c in skel.coordinates.values() if c.prescribed and not c.locked]
-        warnings += _divergence(written)
+        warnings += _divergence(written) + muscle_warnings
         report = ConversionReport(
             model=skel.name, source=str(osim), source_version=doc.version, xml=str(out_dir / f"{stem}.xml"),
             seconds=time.perf_counter() - t0,
@@ -235,7 +236,8 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
                     "geoms": model.ngeom, "other forces": force_conv.converted},
             joints=result.joints, approximations=result.approximations,
             skipped=[s for s in skel.skipped if (s.element, s.name) not in force_conv.handled]
-            + force_conv.skipped + geom_skipped + muscle_skipped, notes=result.notes, warnings=warnings,
+            + force_conv.skipped + geom_skipped + muscle_skipped + wrap_skipped, notes=result.notes,
+            warnings=warnings,
             path_fits=[f.to_dict() for f in fits], path_fit_seconds=fit_seconds, path_forces_mode=options.path_forces,
             path_forces=[asdict(r) for r in tendons.path_forces],
             length_vias=[asdict(v) for v in vias])
@@ -244,13 +246,23 @@ def _convert(osim: str | Path, out_dir: str | Path, options: ConvertOptions, geo
     return Conversion(out_dir / f"{stem}.xml", report)
 
 
+def _unused_wraps(wraps: dict, paths: list) -> list[Skipped]:
+    """The wrap objects no converted path wraps over, each a :class:`Skipped` (a wrap object only
+    bends the paths that list it, so leaving it out changes nothing)."""
+    used = {w.wrap for p in paths for w in p.wraps}
+    return [Skipped(w.element.tag if w.element is not None else "WrapObject", name,
+                    "no converted path wraps over it (it bends only the paths that list it): nothing changes")
+            for name, w in wraps.items() if name not in used]
+
+
 #: The muscle properties an error about a fit out of scale quotes.
 _MUSCLE_SCALE = ("max_isometric_force", "optimal_fiber_length", "tendon_slack_length")
 
 
-def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
+def _fit_mechanics(result, osim: Path, paths: list, doc) -> tuple[list[Skipped], list[str]]:
     """Fit every muscle actuator to OpenSim's muscle forces; record each fit's error. A fit MuJoCo
-    would refuse is an error naming the muscle (of ``paths``) and its line."""
+    would refuse is an error naming the muscle (of ``paths``) and its line. Returns the muscles
+    skipped and a warning for each fit no better than a guess (:func:`_doubtful_fit`)."""
     fits = fit_muscles(osim)
     elements = {p.owner: p.element for p in paths}
     by_note: dict[str, list[str]] = {}  # the fits' notes (activation and force-velocity mappings), muscles sharing one
@@ -288,7 +300,30 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> list[Skipped]:
         result.notes.append(f"{_muscle_list(started)}: the 'default-pose' keyframe's act starts each at its "
                             "activation in OpenSim's default state (mj_resetDataKeyframe; mj_resetData starts "
                             "every activation at 0)")
-    return list(fits.skipped)
+    doubtful = [w for w in (_doubtful_fit(p) for p in fits.values()) if w]
+    return list(fits.skipped), doubtful
+
+
+#: A muscle's force-length fit whose worst error is over this (% of max isometric force) is no
+#: better than a guess, and the conversion says so (the corpus's worst is about 70 %).
+DOUBTFUL_FIT_PCT = 100.0
+
+
+def _doubtful_fit(p) -> str | None:
+    """A warning for the fitted muscle ``p`` (:class:`~o2m.convert.muscles.MuscleParams`) where OpenSim
+    gave forces at under half the lengths fitted, or the fit's worst error passes :data:`DOUBTFUL_FIT_PCT`:
+    a MuJoCo muscle written from that is no model of OpenSim's (a muscle on a slider with OpenSim's
+    default ±10 m range, its length 0 at rest)."""
+    finite = int(np.sum(np.isfinite(p.opensim_active))) if p.opensim_active is not None else 0
+    worst = max(p.err_active_max_pct, p.err_passive_max_pct)
+    if p.opensim_active is not None and finite < 0.5 * len(p.opensim_active):
+        why = f"OpenSim gave its force at only {finite} of the {len(p.opensim_active)} lengths fitted"
+    elif worst > DOUBTFUL_FIT_PCT:
+        why = f"its force-length fit is {worst:.3g} % of max isometric force off OpenSim's at worst"
+    else:
+        return None
+    return (f"{p.type} {p.name}: {why} over its lengthrange {p.lengthrange[0]:.4g}-{p.lengthrange[1]:.4g} m: "
+            "check its properties and its coordinates' ranges (see the report's notes)")
 
 
 def _muscle_list(names: list[str], shown: int = 4) -> str:

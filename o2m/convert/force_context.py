@@ -37,7 +37,9 @@ FAR = 1e6
 def _step(x: np.ndarray, x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
     """SimTK::Function::Step: y0 below x0, y1 above x1, a quintic (10t³ - 15t⁴ + 6t⁵) between."""
     t = np.clip((np.asarray(x, dtype=float) - x0) / (x1 - x0), 0.0, 1.0)
-    return y0 + (y1 - y0) * t ** 3 * (10.0 + t * (6.0 * t - 15.0))
+    # clipped: the quintic's round-off can pass 1 by an ulp, and a stiffness must not go negative
+    s = np.clip(t ** 3 * (10.0 + t * (6.0 * t - 15.0)), 0.0, 1.0)
+    return y0 * (1.0 - s) + y1 * s
 
 
 @dataclass

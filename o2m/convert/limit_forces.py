@@ -63,6 +63,9 @@ RANGE_MARGIN = 0.1
 SPEEDS = (-1.0, 0.0, 1.0)
 #: A side of a limit force whose torque stays below this (N m or N) over the grid is left out.
 NEGLIGIBLE = 1e-5
+#: A damping step weight (0 to 2) no larger than this over the range is round-off: no joint damping
+#: (a symmetric force's weights left -1.8e-15 N m s/rad of it, a negative damping, on a walker's hips).
+WEIGHT_ROUNDOFF = 1e-12
 
 
 def motion_type(skel: Skeleton, coordinate: str) -> str:
@@ -241,7 +244,7 @@ def convert_coordinate_limit_force(ctx: _Context, el: etree._Element) -> None:
                                                    "stiffness": np.array(s.coef)}
         f.sides.append(s)
     weight = f.weight(np.linspace(lo, hi, N_GRID))  # damping: the constant best over the range itself
-    if f.damping != 0.0 and np.any(weight != 0.0):
+    if f.damping != 0.0 and float(weight.max()) > WEIGHT_ROUNDOFF:
         f.joint_damping = f.damping * 0.5 * (float(weight.max()) + float(weight.min()))
         f.damping_error = abs(f.damping) * 0.5 * float(np.ptp(weight))
     ctx.out.limit_forces.append(f)

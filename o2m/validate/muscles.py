@@ -82,6 +82,9 @@ class MomentArmError:
     #: following their couplers), and RMS of OpenSim's computeMomentArm minus that -dL/dq.
     rms_vs_dldq: float = 0.0
     opensim_compute_vs_dldq: float = 0.0
+    #: Moment-arm poses left out where OpenSim's computeMomentArm is NaN (a path of length 0
+    #: there, as a muscle whose two points meet at the default pose).
+    opensim_nan: int = 0
 
 
 @dataclass
@@ -144,6 +147,9 @@ class MuscleReport:
     locked_coordinates: list[str] = field(default_factory=list)
     worst_length: dict[str, Any] | None = None
     skipped_poses: int = 0
+    #: (muscle, coordinate, pose) moment-arm samples left out where OpenSim's computeMomentArm is
+    #: NaN (a pair with none left is not compared).
+    ma_opensim_nan: int = 0
     #: (muscle, pose) samples left out because OpenSim's own length spikes there
     #: (:func:`~o2m.osim.spikes.opensim_spikes`): each {"muscle", "pose", "coordinate", "length",
     #: "neighbours"}; or because its path runs past a path point to a wrap and back
@@ -197,7 +203,9 @@ class MuscleReport:
             f"{len(self.coordinates)} coordinates"
             + (f", {self.skipped_poses} poses skipped (assembly failed)" if self.skipped_poses else "")
             + (f", {len(self.opensim_spikes)} (muscle, pose) samples left out where OpenSim's own length spikes "
-               "or detours, loops, winds or is not its drawn path's" if self.opensim_spikes else ""),
+               "or detours, loops, winds or is not its drawn path's" if self.opensim_spikes else "")
+            + (f", {self.ma_opensim_nan} moment-arm samples left out where OpenSim's computeMomentArm is NaN"
+               if self.ma_opensim_nan else ""),
         ]
         w = max([len("muscle")] + [len(m) for m in self.muscles])
         lines.append(f"  {'muscle':<{w}}  {'max len mm':>10}  {'rms len mm':>10}  {'max len %':>9}  "
@@ -393,6 +401,7 @@ def compare_muscles(
     moment_arms: dict[str, dict[str, MomentArmError]] = {n: {} for n in names}
     rms_all: list[float] = []
     rms_fd_all: list[float] = []
+    ma_nan = 0
     dldq_cache: dict[tuple[int, int], np.ndarray] = {}
 
     def os_dldq(k: int, j: int) -> np.ndarray:
@@ -422,6 +431,11 @@ def compare_muscles(
             if not use:
                 continue
             r_os = np.array([obj.computeMomentArm(ma_states[k], coord_objs[j]) for k in use], dtype=float)
+            finite = np.isfinite(r_os)
+            ma_nan += int(np.sum(~finite))
+            use, r_os = [k for k, ok in zip(use, finite, strict=True) if ok], r_os[finite]
+            if not use:
+                continue
             r_mj = np.array([ma_mj[k][i, j] for k in use])
             r_fd = np.array([os_dldq(k, j)[i] for k in use])
             if np.max(np.abs(r_os)) <= MA_ZERO and np.max(np.abs(r_mj)) <= MA_ZERO:
@@ -434,6 +448,7 @@ def compare_muscles(
                 max_abs_mujoco=float(np.max(np.abs(r_mj))),
                 rms_vs_dldq=_nan_rms(r_mj - r_fd),
                 opensim_compute_vs_dldq=_nan_rms(r_os - r_fd),
+                opensim_nan=int(np.sum(~finite)),
             )
             moment_arms[name][cname] = e
             rms_all.append(e.rms)
@@ -479,6 +494,7 @@ def compare_muscles(
         locked_coordinates=pair.locked,
         worst_length=worst,
         skipped_poses=skipped,
+        ma_opensim_nan=ma_nan,
         opensim_spikes=spikes,
     )
 

@@ -479,3 +479,47 @@ def test_muscle_fit_refusals_name_the_muscle(prop, value, expect, tmp_path):
     msg = str(info.value)
     assert all(s in msg for s in case.expect) and expect in msg and msg.startswith(str(path)), msg
     _assert_no_output(tmp_path, out)
+
+
+def test_a_muscle_opensim_cannot_balance_converts_with_a_warning(tmp_path):
+    """A muscle on a slider with OpenSim's default ±10 m range, its path of length 0 at rest (as
+    a public test model has it): OpenSim finds its static equilibrium at a few of the lengths
+    only, so the fitted MuJoCo muscle is no model of OpenSim's: the conversion warns, naming it."""
+    m, b = _slider(tmp_path, 10.0)
+    muscle = osim.DeGrooteFregly2016Muscle()
+    muscle.setName("hanging")
+    muscle.addNewPathPoint("origin", m.getGround(), osim.Vec3(0))
+    muscle.addNewPathPoint("insertion", b, osim.Vec3(0))
+    muscle.set_optimal_fiber_length(0.2)
+    muscle.set_tendon_slack_length(0.01)
+    m.addForce(muscle)
+    path = tmp_path / "hanging.osim"
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False))
+    warned = [w for w in conv.report.warnings if "hanging" in w]
+    assert len(warned) == 1 and "lengths fitted" in warned[0], conv.report.warnings
+
+
+def test_a_wrap_object_no_path_uses_is_a_skip(tmp_path):
+    """A wrap object that no path lists changes nothing; the report says it was left out."""
+    m, _ = _slider(tmp_path, 0.05)
+    sphere = osim.WrapSphere()
+    sphere.setName("unused")
+    sphere.set_radius(0.02)
+    m.updGround().addWrapObject(sphere)
+    path = tmp_path / "unused.osim"
+    m.finalizeConnections()
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False))
+    assert [(s.element, s.name) for s in conv.report.skipped] == [("WrapSphere", "unused")], conv.report.skipped
+    assert "nothing changes" in conv.report.skipped[0].reason
+
+
+def _slider(tmp_path, half_range: float):
+    from tests.helpers import slider_model
+
+    m, b = slider_model(tmp_path.name)
+    m.updJointSet().get(0).upd_coordinates(0).setRangeMin(-half_range)
+    m.updJointSet().get(0).upd_coordinates(0).setRangeMax(half_range)
+    return m, b

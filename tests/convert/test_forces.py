@@ -710,3 +710,20 @@ def test_coordinate_actuators_of_ball_and_free_joints_match_opensim(joint_type, 
         got = mujoco_acc(name, 1.0) - mujoco_acc(name, 0.0)
         assert np.abs(expected).max() > 1.0 or k >= 3, (name, expected)  # a free joint's slides turn nothing
         np.testing.assert_allclose(got, expected, atol=1e-8 * max(1.0, np.abs(expected).max()), err_msg=name)
+
+
+def test_a_limit_force_beyond_the_range_adds_no_damping(tmp_path):
+    """Limits at ±100° on a ±100° range (5° transitions): the damping's step weight is 0 over the
+    range up to round-off, which once summed to a negative joint damping (-1.8e-15 N m s/rad on a
+    public walker's hips). The joint gets none, and the limit torque is still converted."""
+    from tests.helpers import pin_pendulum
+
+    m, _ = pin_pendulum("limits", q_range=(-1.74532925199433, 1.74532925199433))  # the walker's ±100°
+    m.addForce(osim.CoordinateLimitForce("q", 100.0, 0.5, -100.0, 0.5, 0.1, 5.0))
+    m.finalizeConnections()
+    path = tmp_path / "limits.osim"
+    m.printToXML(str(path))
+    conv = convert(path, tmp_path / "out", convert_options(fit_wraps=False))
+    mj = mujoco.MjModel.from_xml_path(str(conv.xml))
+    assert mj.dof_damping[mj.jnt_dofadr[mj.joint("q").id]] == 0.0
+    assert mj.ntendon == 2  # the two limits, each a dead-band tendon

@@ -404,3 +404,34 @@ def test_bad_arguments(arm):
         compare_muscles(arm["osim"], arm["good"], n_poses=0)
     with pytest.raises(KeyError):
         moment_arm_curve(arm["osim"], arm["good"], "nope", "q_el")
+
+
+def test_nan_moment_arms_of_opensim_are_left_out_and_counted(tmp_path):
+    """A muscle on a ±10 m slider whose two points meet at rest (a public test model's form):
+    OpenSim's computeMomentArm is NaN at the comparison's poses. Those samples are left out and
+    counted, and no NaN reaches the moment-arm statistics (once all three were NaN)."""
+    from tests.helpers import slider_model
+
+    m, b = slider_model("hanging")
+    coord = m.updJointSet().get(0).upd_coordinates(0)
+    coord.setRangeMin(-10.0)
+    coord.setRangeMax(10.0)
+    muscle = osim.Thelen2003Muscle()
+    muscle.setName("hanging")
+    muscle.addNewPathPoint("origin", m.getGround(), osim.Vec3(0))
+    muscle.addNewPathPoint("insertion", b, osim.Vec3(0))
+    m.addForce(muscle)
+    m.finalizeConnections()
+    osim_path = tmp_path / "hanging.osim"
+    m.printToXML(str(osim_path))
+    xml = tmp_path / "hanging.xml"
+    xml.write_text(f"""<mujoco><worldbody><site name="origin"/>
+<body name="b"><joint name="{coord.getName()}" type="slide" axis="1 0 0" range="-10 10"/>
+<geom size="0.05" mass="1"/><site name="insertion"/></body></worldbody>
+<tendon><spatial name="hanging"><site site="origin"/><site site="insertion"/></spatial></tendon>
+<actuator><muscle name="hanging" tendon="hanging" lengthrange="0 10"/></actuator></mujoco>""")
+    rep = compare_muscles(osim_path, xml, n_poses=12, seed=0, ma_poses=6)
+    assert rep.max_len_pct < 1e-6  # the lengths agree: |x| in both
+    assert rep.ma_opensim_nan > 0
+    assert all(math.isfinite(v) for v in (rep.ma_median, rep.ma_p95, rep.ma_max)), rep
+    assert "computeMomentArm is NaN" in rep.summary()
