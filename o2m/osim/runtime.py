@@ -115,12 +115,20 @@ def load_model(osim_path: str | os.PathLike, assembly_accuracy: float | None = N
 
 def sample_bounds(coord: Any) -> tuple[float, float]:
     """Sampling interval of an OpenSim coordinate (radians or metres): its range, with an
-    infinite bound replaced by +-1 m (translational) or +-pi (otherwise)."""
+    infinite bound replaced by +-1 m (translational) or +-pi (otherwise). A rotation's range
+    wider than a turn (OpenSim's "unbounded" +-99999.9) is the turn centred on its default value:
+    a turn holds every pose of it, where samples 1e5 rad out would only put the functions of it
+    (splines of a coupled axis) far beyond their knots."""
     lo, hi = float(coord.getRangeMin()), float(coord.getRangeMax())
-    default = 1.0 if coord.getMotionType() == TRANSLATIONAL else math.pi
+    rotation = coord.getMotionType() != TRANSLATIONAL
+    default = math.pi if rotation else 1.0
     lo = lo if math.isfinite(lo) else -default
     hi = hi if math.isfinite(hi) else default
-    return (lo, hi) if lo <= hi else (hi, lo)
+    lo, hi = (lo, hi) if lo <= hi else (hi, lo)
+    if rotation and hi - lo > 2.0 * math.pi:
+        centre = min(max(float(coord.getDefaultValue()), lo), hi)
+        lo, hi = max(lo, centre - math.pi), min(hi, centre + math.pi)
+    return lo, hi
 
 
 def is_held(coord: Any, state: Any) -> bool:

@@ -1,4 +1,5 @@
-"""OpenSim's log: silent on the terminal by default, and into a file inside ``opensim_log``."""
+"""OpenSim's log: silent on the terminal by default, and into a file inside ``opensim_log``; the
+intervals coordinates are sampled over."""
 
 from __future__ import annotations
 
@@ -77,3 +78,28 @@ def test_a_simulation_worker_appends_opensims_log_to_the_named_file(tmp_path, ca
     assert run.ok, run.reason
     assert "Loaded model" in log_file.read_text()
     assert not OPENSIM_LINE.search(out + err)
+
+
+def test_a_rotation_wider_than_a_turn_is_sampled_over_the_turn_round_its_default():
+    """OpenSim's "unbounded" ±99999.9 on a pin (a public ball-joint test model's, sampled at
+    -402607 rad once): one turn round the default value; a translation's range is kept, an
+    infinite one becomes ±1 m, a range within a turn is kept."""
+    import math
+
+    from tests.helpers import pin_pendulum, slider_model
+
+    m, _ = pin_pendulum("wide", q_range=(-99999.9, 99999.9))
+    c = m.updCoordinateSet().get(0)
+    c.setDefaultValue(0.5)
+    lo, hi = runtime.sample_bounds(c)
+    assert (lo, hi) == (0.5 - math.pi, 0.5 + math.pi)
+    c.setRangeMin(-1.0)
+    c.setRangeMax(1.5)
+    assert runtime.sample_bounds(c) == (-1.0, 1.5)
+    m, _ = slider_model("far")
+    c = m.updCoordinateSet().get(0)
+    c.setRangeMin(-99999.9)
+    c.setRangeMax(99999.9)
+    assert runtime.sample_bounds(c) == (-99999.9, 99999.9)
+    c.setRangeMin(-math.inf)
+    assert runtime.sample_bounds(c) == (-1.0, 99999.9)
