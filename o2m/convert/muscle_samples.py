@@ -64,7 +64,7 @@ FAILURE_NAMES = {1: "detour", 2: "loop", 3: "winding", 4: "length not of its dra
 @dataclass
 class LengthSamples:
     """OpenSim's MTU lengths over sampled poses: ``poses`` (n, independent coordinates, rad or m),
-    ``lengths`` (n, muscles, m; NaN where left out), ``failures`` (n, muscles) the code
+    ``lengths`` (n, muscles, m; NaN where a pose did not assemble), ``failures`` (n, muscles) the code
     (:data:`FAILURE_TESTS`) of the test OpenSim's path fails there, 0 for none, and ``n_failed``
     the poses OpenSim could not assemble (whole rows of NaN)."""
 
@@ -244,8 +244,6 @@ def sample_lengths(pm: _PoseModel, osim_path: str, supported: list[int], n_poses
     lengths = np.concatenate([len_ends, len_rest], axis=0)
     failures = np.concatenate([fail_ends, fail_rest], axis=0)
     n_failed = int(np.isnan(lengths).all(axis=1).sum()) if lengths.size else 0
-    # no tendon reaches the length of a path that fails as a path: it must not stretch the lengthrange
-    lengths[failures > 0] = np.nan
     return LengthSamples(np.concatenate([ends, rest], axis=0), lengths, failures, n_failed)
 
 
@@ -300,10 +298,16 @@ def _lengthranges(samples: LengthSamples, supported: list[int], names: list[str]
     for k, i in enumerate(supported):
         col = samples.lengths[:, i].copy()
         codes = samples.failures[:, i]
-        if codes.any():
-            kinds = ", ".join(f"{int((codes == c).sum())} {FAILURE_NAMES[c]}" for c in sorted(set(codes[codes > 0])))
-            notes[names[k]].append(f"{int((codes > 0).sum())} sampled pose(s) left out of the lengthrange where "
-                                   f"OpenSim's path fails as a path ({kinds}; o2m.osim.spikes)")
+        kinds = ", ".join(f"{int((codes == c).sum())} {FAILURE_NAMES[c]}" for c in sorted(set(codes[codes > 0])))
+        if np.isfinite(col[codes == 0]).any():
+            # no tendon reaches the length of a path that fails as a path: it must not stretch the lengthrange
+            col[codes > 0] = np.nan
+            if kinds:
+                notes[names[k]].append(f"{int((codes > 0).sum())} sampled pose(s) left out of the lengthrange "
+                                       f"where OpenSim's path fails as a path ({kinds}; o2m.osim.spikes)")
+        elif kinds:
+            notes[names[k]].append(f"OpenSim's path fails as a path at every sampled pose ({kinds}; "
+                                   "o2m.osim.spikes): the lengthrange is of those lengths")
         island = None if pm is None else length_island(
             samples.poses, col, lambda a, b, i=i: pm.length_along(i, a, b, ISLAND_LINE_STEPS))
         if island is not None:

@@ -167,8 +167,10 @@ def test_lengthranges_leave_out_path_failures_and_name_them():
     lengths = np.array([[0.10], [0.12], [0.30], [0.11], [0.25]])
     failures = np.zeros((5, 1), dtype=np.int8)
     failures[2, 0], failures[4, 0] = FAILURE_TESTS["loop"], FAILURE_TESTS["inconsistent"]
-    lengths[failures > 0] = np.nan  # as sample_lengths leaves them
     lr, notes = _lengthranges(LengthSamples(np.zeros((5, 1)), lengths, failures, 0), [0], ["m"])
     assert tuple(lr[0]) == (0.10, 0.12)
     assert notes["m"] == ["2 sampled pose(s) left out of the lengthrange where OpenSim's path fails as a path "
                           "(1 loop, 1 length not of its drawn path; o2m.osim.spikes)"]
+    # a path that fails at every pose keeps its lengths (the fit needs some), and says so
+    lr, notes = _lengthranges(LengthSamples(np.zeros((5, 1)), lengths, np.full((5, 1), 4, np.int8), 0), [0], ["m"])
+    assert tuple(lr[0]) == (0.10, 0.30) and "at every sampled pose" in notes["m"][0], notes
