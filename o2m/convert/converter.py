@@ -305,7 +305,8 @@ def _fit_mechanics(result, osim: Path, paths: list, doc) -> tuple[list[Skipped],
 
 
 #: A muscle's force-length fit whose worst error is over this (% of max isometric force) is no
-#: better than a guess, and the conversion says so (the corpus's worst is about 70 %).
+#: better than a guess, and the conversion says so (a rigid tendon's curves leave less on any
+#: muscle of the corpus; docs/conversion.md).
 DOUBTFUL_FIT_PCT = 100.0
 
 

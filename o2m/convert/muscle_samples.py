@@ -255,8 +255,9 @@ def length_island(poses: np.ndarray, lengths: np.ndarray,
     :data:`ISLAND_STEP` of the gap between two of the lengths ``length_along(start, end)`` gives
     along the line from its pose to the nearest other pose (coordinates scaled by their spread).
     A muscle works at the lengths its poses fill; OpenSim's wrap flickering on the long way round
-    for a moment (MoBL-ARMS's TMIN: 0.30 m at 2 of 375 poses, 0.10-0.16 m elsewhere) would
-    otherwise spread its lengthrange, and with it the force fit, over lengths it never works at.
+    in a thin slice of poses (MoBL-ARMS's TMIN at high shoulder elevation, twice its length
+    elsewhere) would otherwise spread its lengthrange, and with it the force fit, over lengths it
+    never works at.
     Returns {"index" (island sample indices), "gap", "rest" (m, the other lengths' min and max),
     "step" (m, the smallest island's largest one-step change)}, or None."""
     finite = np.flatnonzero(np.isfinite(lengths))
