@@ -27,7 +27,7 @@ from o2m.osim.couplers import coupler_chain, satisfy_constraints
 from o2m.osim.document import OsimDocument, load_document, opensim_reason, opensim_refusal
 from o2m.osim.names import opensim_coordinate_names
 from o2m.osim.simulate import tendon_force
-from o2m.osim.spikes import length_inconsistency, path_failure
+from o2m.osim.spikes import unfair_path
 
 __all__ = ["FV_FIT_RANGE", "N_EVAL", "LengthSamples", "MuscleSample", "length_island", "measure_muscles",
            "sample_lengths"]
@@ -54,9 +54,8 @@ ISLAND_GAP = 0.5
 #: samples, so only a step leaves such a gap.
 ISLAND_STEP = 0.5
 ISLAND_LINE_STEPS = 64
-#: The tests of OpenSim's path (``test`` of :func:`~o2m.osim.spikes.path_failure` and
-#: :func:`~o2m.osim.spikes.length_inconsistency`) by their codes in :attr:`LengthSamples.failures`
-#: (0: none), and how the report names them.
+#: The tests of OpenSim's path (``test`` of :func:`~o2m.osim.spikes.unfair_path`) by their codes
+#: in :attr:`LengthSamples.failures` (0: none), and how the report names them.
 FAILURE_TESTS = {"detour": 1, "loop": 2, "winding": 3, "inconsistent": 4}
 FAILURE_NAMES = {1: "detour", 2: "loop", 3: "winding", 4: "length not of its drawn path"}
 
@@ -151,8 +150,7 @@ class _PoseModel:
     def lengths(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(n_poses, n_muscles) MTU lengths (m) and failure codes (:data:`FAILURE_TESTS`). A pose
         OpenSim fails to assemble gives NaNs; a code marks a muscle whose path fails as a path there
-        (:func:`~o2m.osim.spikes.path_failure`, :func:`~o2m.osim.spikes.length_inconsistency`,
-        the comparison's own tests)."""
+        (:func:`~o2m.osim.spikes.unfair_path`, the comparison's own tests)."""
         out = np.full((len(poses), len(self.muscles)), np.nan)
         codes = np.zeros(out.shape, dtype=np.int8)
         for k, q in enumerate(poses):
@@ -162,8 +160,7 @@ class _PoseModel:
                 continue
             out[k] = [m.getLength(st) for m in self.muscles]
             for i in self.wrapped:
-                name = self.muscle_names[i]
-                found = path_failure(self.model, st, name) or length_inconsistency(self.model, st, name, out[k, i])
+                found = unfair_path(self.model, st, self.muscle_names[i], out[k, i])
                 if found is not None:
                     codes[k, i] = FAILURE_TESTS[found["test"]]
         return out, codes
@@ -492,10 +489,8 @@ def measure_muscles(osim_path: str, pm: _PoseModel, supported: list[int], sample
         raise ModelFileError(f"{osim_path}: muscle(s) {', '.join(missing)} not found in the ForceSet")
     for k, i in enumerate(supported):
         if not np.isfinite(samples.lengths[:, i]).any():
-            winds = ", or its path fails as a path round its wraps" if i in pm.wrapped else ""
             raise doc.error(elements[names[k]], f"has no finite length at any of the {len(samples.lengths)} poses "
-                                                f"sampled (OpenSim gives inf or NaN: a path point too far out?"
-                                                f"{winds})")
+                                                "sampled (OpenSim gives inf or NaN: a path point too far out?)")
     bench = _Bench(doc, [elements[n] for n in names])
     lr, notes = _lengthranges(samples, supported, names, pm)
     grid = lr[:, :1] + (lr[:, 1:] - lr[:, :1]) * np.linspace(0.0, 1.0, N_EVAL)[None, :]

@@ -21,8 +21,8 @@ __all__ = ["BAND_FRACTION", "BAND_GATE", "BAND_STEPS", "DETOUR_FRACTION", "DLDQ_
            "LOOP_KINDS", "OUTLIER", "SPIKE_LINEAR_STEP", "SPIKE_STEP", "SPIKE_TOL", "arc_turn", "band_suspects",
            "current_path_points", "drawn_length", "length_inconsistency", "one_pose_spikes", "opensim_detours",
            "opensim_failures", "opensim_inconsistencies", "opensim_loops", "opensim_spikes", "opensim_windings",
-           "outlying_changes", "path_detour", "path_failure", "path_loop", "path_winding", "runs_cross", "wrap_arcs",
-           "wrap_contacts", "wrap_runs"]
+           "outlying_changes", "path_detour", "path_failure", "path_loop", "path_winding", "runs_cross", "unfair_path",
+           "wrap_arcs", "wrap_contacts", "wrap_runs"]
 
 #: OpenSim spike test (see :func:`opensim_spikes`): coordinate step (radians, metres) and size (m).
 SPIKE_STEP = 0.01
@@ -409,6 +409,13 @@ def path_failure(os_model: Any, state: Any, name: str) -> dict[str, Any] | None:
         if found is not None:
             return {"test": test, **found}
     return None
+
+
+def unfair_path(os_model: Any, state: Any, name: str, length: float) -> dict[str, Any] | None:
+    """:func:`path_failure`, else :func:`length_inconsistency` of OpenSim's ``length`` (m): why
+    OpenSim's path of the path force ``name`` in realised ``state`` is no fair test of a tendon
+    (no tendon has that length), or None."""
+    return path_failure(os_model, state, name) or length_inconsistency(os_model, state, name, length)
 
 
 def opensim_failures(pair: ModelPair, values: Mapping[str, float], muscles: Sequence[int],

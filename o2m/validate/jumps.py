@@ -21,12 +21,11 @@ from o2m.osim.spikes import (
     BAND_STEPS,
     SPIKE_LINEAR_STEP,
     SPIKE_STEP,
-    length_inconsistency,
     one_pose_spikes,
     opensim_loops,
     opensim_windings,
     outlying_changes,
-    path_failure,
+    unfair_path,
 )
 from o2m.validate.kinematics import jsonable
 from o2m.validate.muscles import LEN_PCT
@@ -322,10 +321,9 @@ def _lengths_at(pair: ModelPair, state: Callable[[float], Any], q: float) -> np.
 
 def _unfair(pair: ModelPair, state: Any, name: str) -> bool:
     """Whether OpenSim's path ``name`` in realised ``state`` is no fair test of a tendon: it
-    detours, loops or winds (:func:`o2m.osim.spikes.path_failure`), or its length is not that of
-    the path it draws (:func:`o2m.osim.spikes.length_inconsistency`)."""
-    return (path_failure(pair.os_model, state, name) is not None
-            or length_inconsistency(pair.os_model, state, name, float(pair.force(name).getLength(state))) is not None)
+    detours, loops or winds, or its length is not that of the path it draws
+    (:func:`o2m.osim.spikes.unfair_path`)."""
+    return unfair_path(pair.os_model, state, name, float(pair.force(name).getLength(state))) is not None
 
 
 def continuous_tendon_front(

@@ -432,7 +432,8 @@ def compare_muscles(
                 continue
             r_os = np.array([obj.computeMomentArm(ma_states[k], coord_objs[j]) for k in use], dtype=float)
             finite = np.isfinite(r_os)
-            ma_nan += int(np.sum(~finite))
+            n_nan = int(np.sum(~finite))
+            ma_nan += n_nan
             use, r_os = [k for k, ok in zip(use, finite, strict=True) if ok], r_os[finite]
             if not use:
                 continue
@@ -448,7 +449,7 @@ def compare_muscles(
                 max_abs_mujoco=float(np.max(np.abs(r_mj))),
                 rms_vs_dldq=_nan_rms(r_mj - r_fd),
                 opensim_compute_vs_dldq=_nan_rms(r_os - r_fd),
-                opensim_nan=int(np.sum(~finite)),
+                opensim_nan=n_nan,
             )
             moment_arms[name][cname] = e
             rms_all.append(e.rms)
